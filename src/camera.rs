@@ -1,0 +1,95 @@
+//! Perspective camera in f64 world space, with frustum planes in the wgpu
+//! clip convention (0 ≤ z ≤ w).
+
+use glam::{DMat4, DVec3, DVec4};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: DVec3,
+    pub target: DVec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f64,
+    pub near: f64,
+    pub far: f64,
+    /// Width ÷ height of the image.
+    pub aspect: f64,
+}
+
+impl Camera {
+    /// Up vector: world z, unless the view is (nearly) vertical, where the
+    /// camera keeps north (+y) up so looking straight down still works.
+    pub fn up(&self) -> DVec3 {
+        let d = (self.target - self.eye).normalize_or_zero();
+        if d.cross(DVec3::Z).length_squared() < 1e-12 {
+            DVec3::Y
+        } else {
+            DVec3::Z
+        }
+    }
+    /// Right-handed view matrix: the camera looks down its −z axis.
+    pub fn view(&self) -> DMat4 {
+        let f = (self.target - self.eye).normalize();
+        let s = f.cross(self.up()).normalize();
+        let u = s.cross(f);
+        DMat4::from_cols(
+            DVec4::new(s.x, u.x, -f.x, 0.0),
+            DVec4::new(s.y, u.y, -f.y, 0.0),
+            DVec4::new(s.z, u.z, -f.z, 0.0),
+            DVec4::new(-s.dot(self.eye), -u.dot(self.eye), f.dot(self.eye), 1.0),
+        )
+    }
+    /// Right-handed perspective with depth mapped to [0, 1] (wgpu/Vulkan).
+    pub fn projection(&self) -> DMat4 {
+        let h = 1.0 / (0.5 * self.fov_y_deg.to_radians()).tan();
+        let w = h / self.aspect;
+        let r = self.far / (self.near - self.far);
+        DMat4::from_cols(
+            DVec4::new(w, 0.0, 0.0, 0.0),
+            DVec4::new(0.0, h, 0.0, 0.0),
+            DVec4::new(0.0, 0.0, r, -1.0),
+            DVec4::new(0.0, 0.0, r * self.near, 0.0),
+        )
+    }
+    pub fn view_projection(&self) -> DMat4 {
+        self.projection() * self.view()
+    }
+    /// The six inward-facing planes (left, right, bottom, top, near, far):
+    /// a point p is inside when `plane.xyz · p + plane.w ≥ 0` for all six.
+    pub fn frustum(&self) -> Frustum {
+        let m = self.view_projection();
+        let r = [m.row(0), m.row(1), m.row(2), m.row(3)];
+        let planes = [
+            r[3] + r[0],
+            r[3] - r[0],
+            r[3] + r[1],
+            r[3] - r[1],
+            r[2],
+            r[3] - r[2],
+        ]
+        .map(|p| p / p.truncate().length());
+        let inv = m.inverse();
+        let mut corners = [DVec3::ZERO; 8];
+        for (i, c) in corners.iter_mut().enumerate() {
+            let x = if i & 1 == 0 { -1.0 } else { 1.0 };
+            let y = if i & 2 == 0 { -1.0 } else { 1.0 };
+            let z = if i & 4 == 0 { 0.0 } else { 1.0 };
+            let h = inv * DVec4::new(x, y, z, 1.0);
+            *c = h.truncate() / h.w;
+        }
+        Frustum { planes, corners }
+    }
+}
+
+/// Frustum as planes plus its 8 corner points.
+#[derive(Clone, Copy, Debug)]
+pub struct Frustum {
+    pub planes: [DVec4; 6],
+    pub corners: [DVec3; 8],
+}
+
+impl Frustum {
+    #[inline]
+    pub fn distance(plane: &DVec4, p: DVec3) -> f64 {
+        plane.truncate().dot(p) + plane.w
+    }
+}

@@ -1,0 +1,465 @@
+//! The CPU geometry-clipmap engine: L nested n×n grids around the viewer,
+//! held in toroidal arrays, updated in L-shaped strips, meshed in one of two
+//! index layouts, geomorphed in transition bands and culled to the frustum.
+
+pub mod cull;
+pub mod footprint;
+pub mod level;
+pub mod morph;
+pub mod region;
+pub mod toroid;
+
+use crate::camera::Frustum;
+use crate::error::{Error, Result};
+use crate::pyramid::Pyramid;
+use crate::world::WorldMap;
+use footprint::{Footprints, Instance, ShapeId};
+use level::ClipLevel;
+use region::{Rect, RegionParams};
+use serde::{Deserialize, Serialize};
+use std::sync::Arc;
+use toroid::TexRect;
+
+/// Index layout used to mesh each level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Layout {
+    /// Brettell / LH04: strips over the toroid, cropped to finite maps.
+    #[default]
+    Strips,
+    /// GPU Gems 2: static footprints; full rings, blocks off the map culled.
+    Footprints,
+}
+
+/// Clipmap settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClipmapConfig {
+    /// Grid size n = 2^k − 1 (15 ≤ n ≤ 4095).
+    pub n: i64,
+    /// Level count; `None` = the most the map allows.
+    pub levels: Option<usize>,
+    pub layout: Layout,
+    /// Transition width w in level texels; `None` = n/10 (capped at m − 3).
+    pub transition: Option<f32>,
+    /// Geomorphing on or off (off shows the cracks and pops it hides).
+    pub morph: bool,
+    /// At most this many texels rewritten per update, coarse levels first;
+    /// levels that do not fit are deactivated for the frame (LH04's graceful
+    /// degradation). The coarsest level is always updated.
+    pub texel_budget: Option<u64>,
+}
+
+impl Default for ClipmapConfig {
+    fn default() -> Self {
+        ClipmapConfig {
+            n: 63,
+            levels: None,
+            layout: Layout::Strips,
+            transition: None,
+            morph: true,
+            texel_budget: None,
+        }
+    }
+}
+
+/// What one update did, per level (finest first).
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct UpdateStats {
+    pub texels_per_level: Vec<u64>,
+    pub rects_per_level: Vec<Vec<TexRect>>,
+    pub texels_total: u64,
+    /// Levels left stale (and inactive) because the budget ran out.
+    pub levels_deferred: usize,
+}
+
+/// A mesh vertex after the vertex stage: base-grid position and heights.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshVertex {
+    /// Base-grid column and row.
+    pub x: i64,
+    pub y: i64,
+    /// Own height, coarser-level height, morph weight and morphed height.
+    pub z: f32,
+    pub zc: f32,
+    pub alpha: f32,
+    pub zm: f32,
+}
+
+/// One level's geometry for a frame, in the layout's own form.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LevelGeometry {
+    /// Strip indices into the level's toroid (vertex i = toroid texel i) and
+    /// the zero-area stitching triangles as toroid-index triples.
+    Strips {
+        strip: Vec<u32>,
+        ring: Vec<[u32; 3]>,
+    },
+    /// Placed static footprints.
+    Footprints { instances: Vec<Instance> },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct LevelMesh {
+    pub level: usize,
+    pub geometry: LevelGeometry,
+}
+
+/// The engine.
+#[derive(Clone, Debug)]
+pub struct Clipmap {
+    cfg: ClipmapConfig,
+    n: i64,
+    pyramid: Arc<Pyramid>,
+    params: RegionParams,
+    levels: Vec<ClipLevel>,
+    footprints: Arc<Footprints>,
+    viewer: [f64; 2],
+}
+
+impl Clipmap {
+    /// Validates the settings against the map and allocates the levels.
+    pub fn new(pyramid: Arc<Pyramid>, cfg: ClipmapConfig) -> Result<Self> {
+        region::check_n(cfg.n).map_err(|r| Error::value("lod.n", r))?;
+        let base = &pyramid.levels[0];
+        let max = region::max_levels(base.width, base.height, cfg.n);
+        let count = cfg.levels.unwrap_or(max);
+        if count == 0 || count > max {
+            return Err(Error::value(
+                "lod.levels",
+                format!(
+                    "{count} levels requested, but a {}×{} map with n = {} allows 1..={max}",
+                    base.width, base.height, cfg.n
+                ),
+            ));
+        }
+        if pyramid.levels.len() < count {
+            return Err(Error::value(
+                "lod.levels",
+                format!(
+                    "pyramid has {} levels, {count} needed",
+                    pyramid.levels.len()
+                ),
+            ));
+        }
+        let m = region::block_size(cfg.n) as f32;
+        let w = cfg.transition.unwrap_or((cfg.n as f32 / 10.0).min(m - 3.0));
+        if !(w > 0.0 && w <= m - 3.0) {
+            return Err(Error::value(
+                "lod.transition",
+                format!(
+                    "transition width must be in (0, {}] for n = {} so the band never reaches a level's inner edge, got {w}",
+                    m - 3.0,
+                    cfg.n
+                ),
+            ));
+        }
+        let map = match cfg.layout {
+            Layout::Strips => Some(region::map_bounds(base.width, base.height, count)),
+            Layout::Footprints => None,
+        };
+        let params = RegionParams {
+            n: cfg.n,
+            levels: count,
+            map,
+        };
+        let regions = region::compute(&params, [0.0, 0.0]);
+        let levels = (0..count)
+            .map(|l| {
+                let mut lv = ClipLevel::new(l, cfg.n as usize, regions[l]);
+                lv.morph.width = w;
+                lv
+            })
+            .collect();
+        Ok(Clipmap {
+            n: cfg.n,
+            footprints: Arc::new(Footprints::new(cfg.n)),
+            cfg,
+            pyramid,
+            params,
+            levels,
+            viewer: [f64::NAN; 2],
+        })
+    }
+
+    pub fn config(&self) -> &ClipmapConfig {
+        &self.cfg
+    }
+    pub fn n(&self) -> i64 {
+        self.n
+    }
+    pub fn levels(&self) -> &[ClipLevel] {
+        &self.levels
+    }
+    pub fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
+    pub fn footprints(&self) -> &Footprints {
+        &self.footprints
+    }
+    pub fn region_params(&self) -> &RegionParams {
+        &self.params
+    }
+    /// The viewer (base-grid units) of the last update.
+    pub fn viewer(&self) -> [f64; 2] {
+        self.viewer
+    }
+    /// Usable map bounds (strips layout) in base vertices.
+    pub fn map_bounds(&self) -> Option<Rect> {
+        self.params.map
+    }
+
+    /// Moves every level to the viewer at base-grid position `viewer`,
+    /// rewriting only newly exposed texels, coarse levels first.
+    pub fn update(&mut self, viewer: [f64; 2]) -> UpdateStats {
+        let count = self.levels.len();
+        let viewer = if viewer[0].is_finite() && viewer[1].is_finite() {
+            viewer
+        } else {
+            [0.0, 0.0]
+        };
+        self.viewer = viewer;
+        let mut regions = region::compute(&self.params, viewer);
+        let mut stats = UpdateStats {
+            texels_per_level: vec![0; count],
+            rects_per_level: vec![vec![]; count],
+            ..Default::default()
+        };
+        let mut budget = self.cfg.texel_budget.unwrap_or(u64::MAX);
+        let mut deferred_from = None;
+        for l in (0..count).rev() {
+            let lv = &mut self.levels[l];
+            let origin = regions[l].origin;
+            let needed: u64 = toroid::update_rects(lv.heights.origin(), origin, self.n as usize)
+                .iter()
+                .map(|r| r.area() as u64)
+                .sum();
+            if needed > budget && l + 1 < count {
+                deferred_from = Some(l);
+                break;
+            }
+            budget = budget.saturating_sub(needed);
+            let src = &self.pyramid.levels[l];
+            let rects = lv.heights.move_to(origin, |x, y| src.get_clamped(x, y));
+            stats.texels_per_level[l] = needed;
+            stats.texels_total += needed;
+            stats.rects_per_level[l] = rects;
+        }
+        if let Some(d) = deferred_from {
+            for r in regions.iter_mut().take(d + 1) {
+                r.active = None;
+            }
+            stats.levels_deferred = d + 1;
+        }
+        for l in 0..count {
+            let morph_on = self.cfg.morph
+                && l + 1 < count
+                && regions.get(l + 1).is_some_and(|r| r.active.is_some());
+            let lv = &mut self.levels[l];
+            lv.regions = regions[l];
+            let g = (1i64 << l) as f64;
+            let o = lv.regions.origin;
+            lv.morph.viewer = [
+                (viewer_clamped(&self.params, viewer)[0] / g - o[0] as f64) as f32,
+                (viewer_clamped(&self.params, viewer)[1] / g - o[1] as f64) as f32,
+            ];
+            lv.morph.enabled = morph_on;
+            if let Some(a) = lv.regions.active {
+                let b = footprint::to_level(&a, l);
+                lv.morph.boundary = [
+                    (b[0] - o[0]) as i32,
+                    (b[1] - o[1]) as i32,
+                    (b[2] - o[0]) as i32,
+                    (b[3] - o[1]) as i32,
+                ];
+                lv.morph.stitched = lv.regions.map_sides.map(|s| !s);
+            }
+        }
+        stats
+    }
+
+    /// The vertex stage for level `l` at level texel (x, y): height fetch,
+    /// coarser height, α and the morphed height.
+    #[inline]
+    pub fn vertex(&self, l: usize, x: i64, y: i64) -> MeshVertex {
+        let lv = &self.levels[l];
+        let z = lv.heights.get(x, y);
+        let o = lv.regions.origin;
+        let alpha = lv.morph.alpha((x - o[0]) as i32, (y - o[1]) as i32);
+        let zc = if lv.morph.enabled {
+            morph::coarse_height(&self.levels[l + 1].heights, x, y)
+        } else {
+            z
+        };
+        let g = 1i64 << l;
+        MeshVertex {
+            x: x * g,
+            y: y * g,
+            z,
+            zc,
+            alpha,
+            zm: morph::blend(z, zc, alpha),
+        }
+    }
+
+    /// Height range a level's morphed vertices can take: its own samples and
+    /// those of the level it morphs toward.
+    pub fn height_range(&self, l: usize) -> (f32, f32) {
+        let p = &self.pyramid.levels;
+        let (mut lo, mut hi) = (p[l].min, p[l].max);
+        if self.levels[l].morph.enabled {
+            lo = lo.min(p[l + 1].min);
+            hi = hi.max(p[l + 1].max);
+        }
+        (lo, hi)
+    }
+
+    /// Builds this frame's meshes, culled and cropped to `frustum` if given.
+    pub fn meshes(&self, frustum: Option<(&Frustum, &WorldMap)>) -> Vec<LevelMesh> {
+        let count = self.levels.len();
+        (0..count)
+            .filter(|&l| self.levels[l].is_active())
+            .map(|l| {
+                let geometry = match self.cfg.layout {
+                    Layout::Strips => self.strip_geometry(l, frustum),
+                    Layout::Footprints => self.footprint_geometry(l, frustum),
+                };
+                LevelMesh { level: l, geometry }
+            })
+            .collect()
+    }
+
+    fn strip_geometry(&self, l: usize, frustum: Option<(&Frustum, &WorldMap)>) -> LevelGeometry {
+        let lv = &self.levels[l];
+        let regions: Vec<_> = self.levels.iter().map(|lv| lv.regions).collect();
+        let (zlo, zhi) = self.height_range(l);
+        let g = lv.spacing();
+        let rects: Vec<[i64; 4]> = region::render_rects(&regions, l)
+            .iter()
+            .map(|r| footprint::to_level(r, l))
+            .filter_map(|r| match frustum {
+                Some((f, w)) => cull::cull_rect(f, w, r, g, zlo, zhi),
+                None => Some(r),
+            })
+            .collect();
+        let strip = footprint::strip_indices(&lv.heights, &rects);
+        let mut ring = vec![];
+        if lv.morph.enabled {
+            let a = footprint::to_level(&lv.regions.active.expect("active level"), l);
+            for t in footprint::ring_triangles(a, lv.morph.stitched) {
+                let visible = match frustum {
+                    Some((f, w)) => {
+                        let xs = t.map(|p| p[0]);
+                        let ys = t.map(|p| p[1]);
+                        let r = [
+                            *xs.iter().min().expect("3"),
+                            *ys.iter().min().expect("3"),
+                            *xs.iter().max().expect("3"),
+                            *ys.iter().max().expect("3"),
+                        ];
+                        let (lo, hi) = w.aabb(
+                            (r[0] * g) as f64,
+                            (r[1] * g) as f64,
+                            (r[2] * g) as f64,
+                            (r[3] * g) as f64,
+                            zlo as f64,
+                            zhi as f64,
+                        );
+                        cull::classify(f, lo, hi) != cull::Class::Outside
+                    }
+                    None => true,
+                };
+                if visible {
+                    ring.push(t.map(|p| lv.heights.index(p[0], p[1]) as u32));
+                }
+            }
+        }
+        LevelGeometry::Strips { strip, ring }
+    }
+
+    fn footprint_geometry(
+        &self,
+        l: usize,
+        frustum: Option<(&Frustum, &WorldMap)>,
+    ) -> LevelGeometry {
+        let lv = &self.levels[l];
+        let finer = l
+            .checked_sub(1)
+            .filter(|&f| self.levels[f].is_active())
+            .map(|f| self.levels[f].regions.origin);
+        let mut instances = self
+            .footprints
+            .instances(lv.regions.origin, finer, lv.morph.enabled);
+        if let Some((f, w)) = frustum {
+            let (zlo, zhi) = self.height_range(l);
+            let g = lv.spacing() as f64;
+            let base = &self.pyramid.levels[0];
+            let map = [(base.width - 1) as f64, (base.height - 1) as f64];
+            instances.retain(|i| {
+                let s = self.footprints.shape(i.shape);
+                let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
+                for v in &s.vertices {
+                    x0 = x0.min(v[0]);
+                    y0 = y0.min(v[1]);
+                    x1 = x1.max(v[0]);
+                    y1 = y1.max(v[1]);
+                }
+                let c0 = (i.offset[0] + x0 as i64) as f64 * g;
+                let r0 = (i.offset[1] + y0 as i64) as f64 * g;
+                let c1 = (i.offset[0] + x1 as i64) as f64 * g;
+                let r1 = (i.offset[1] + y1 as i64) as f64 * g;
+                let off_map = c1 < 0.0 || r1 < 0.0 || c0 > map[0] || r0 > map[1];
+                let (lo, hi) = w.aabb(c0, r0, c1, r1, zlo as f64, zhi as f64);
+                // The zero-area ring must stay whenever its level is drawn.
+                i.shape == ShapeId::Ring
+                    || (!off_map && cull::classify(f, lo, hi) != cull::Class::Outside)
+            });
+        }
+        LevelGeometry::Footprints { instances }
+    }
+
+    /// Expands a level mesh into triangles of morphed vertices, for the
+    /// rasteriser and for tests.
+    pub fn triangles(&self, mesh: &LevelMesh) -> Vec<[MeshVertex; 3]> {
+        let l = mesh.level;
+        let lv = &self.levels[l];
+        let s = self.n as usize;
+        let o = lv.regions.origin;
+        let at = |i: u32| {
+            let (tx, ty) = (i as usize % s, i as usize / s);
+            self.vertex(
+                l,
+                toroid::Toroid::<f32>::world_of(tx, o[0], s),
+                toroid::Toroid::<f32>::world_of(ty, o[1], s),
+            )
+        };
+        match &mesh.geometry {
+            LevelGeometry::Strips { strip, ring } => footprint::strip_to_triangles(strip)
+                .into_iter()
+                .chain(ring.iter().copied())
+                .map(|t| t.map(at))
+                .collect(),
+            LevelGeometry::Footprints { instances } => instances
+                .iter()
+                .flat_map(|i| {
+                    let shape = self.footprints.shape(i.shape);
+                    shape.triangles.iter().map(move |t| {
+                        t.map(|k| {
+                            let v = shape.vertices[k as usize];
+                            self.vertex(l, i.offset[0] + v[0] as i64, i.offset[1] + v[1] as i64)
+                        })
+                    })
+                })
+                .collect(),
+        }
+    }
+}
+
+fn viewer_clamped(p: &RegionParams, v: [f64; 2]) -> [f64; 2] {
+    match &p.map {
+        Some(m) => [
+            v[0].clamp(m.x0 as f64, m.x1 as f64),
+            v[1].clamp(m.y0 as f64, m.y1 as f64),
+        ],
+        None => v,
+    }
+}

@@ -1,0 +1,108 @@
+//! Geomorphing in transition regions (Losasso & Hoppe 2004 §2.3; GPU Gems 2
+//! ch. 2): each vertex blends its own height z toward z_c, the coarser level's
+//! surface at the same point, with a weight α that is 0 inside the level and
+//! 1 on its outer boundary, so levels meet without cracks and without popping.
+//!
+//! Everything here is f32 in a fixed operation order, with no fused
+//! multiply-add, so a WGSL vertex shader can reproduce it bit for bit.
+
+use super::toroid::Toroid;
+
+/// Per-level morph constants (what a GPU would hold in a uniform).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MorphParams {
+    /// Viewer position relative to the level's window origin, in level texels.
+    pub viewer: [f32; 2],
+    /// Half the window width, (n − 1) / 2.
+    pub half: f32,
+    /// Transition width w in level texels.
+    pub width: f32,
+    /// False on the coarsest level (nothing to morph toward) or with morph off.
+    pub enabled: bool,
+    /// Outer boundary of the active region, relative to the window origin in
+    /// level texels (x0, y0, x1, y1), and which of its sides face a coarser
+    /// level (map edges do not). Vertices there get α = 1 exactly.
+    pub boundary: [i32; 4],
+    pub stitched: [bool; 4],
+}
+
+impl MorphParams {
+    /// α = max(αx, αy) with αx = clamp((|x − v′x| − (half − w − 1)) / w, 0, 1),
+    /// raised to exactly 1 on stitched boundary sides. `x`, `y` are relative to
+    /// the window origin.
+    #[inline]
+    pub fn alpha(&self, x: i32, y: i32) -> f32 {
+        if !self.enabled {
+            return 0.0;
+        }
+        let b = &self.boundary;
+        let on_edge = (self.stitched[0] && x == b[0])
+            || (self.stitched[1] && y == b[1])
+            || (self.stitched[2] && x == b[2])
+            || (self.stitched[3] && y == b[3]);
+        if on_edge {
+            return 1.0;
+        }
+        let t = self.half - self.width - 1.0;
+        let ax = (((x as f32 - self.viewer[0]).abs() - t) / self.width).clamp(0.0, 1.0);
+        let ay = (((y as f32 - self.viewer[1]).abs() - t) / self.width).clamp(0.0, 1.0);
+        ax.max(ay)
+    }
+}
+
+/// z′ = (1 − α)·z + α·z_c, evaluated without FMA.
+#[inline]
+pub fn blend(z: f32, zc: f32, alpha: f32) -> f32 {
+    let keep = 1.0 - alpha;
+    let a = keep * z;
+    let b = alpha * zc;
+    a + b
+}
+
+/// The coarser level's surface height at fine vertex (x, y) (fine-level world
+/// texels): the coarse sample itself on even-even vertices, the midpoint of
+/// the two coarse neighbours on edge midpoints, and the midpoint of the main
+/// diagonal (the one every mesh here uses) at cell centres.
+#[inline]
+pub fn coarse_height(coarse: &Toroid<f32>, x: i64, y: i64) -> f32 {
+    let (hx, hy) = (x.div_euclid(2), y.div_euclid(2));
+    match (x.rem_euclid(2), y.rem_euclid(2)) {
+        (0, 0) => coarse.get(hx, hy),
+        (1, 0) => (coarse.get(hx, hy) + coarse.get(hx + 1, hy)) * 0.5,
+        (0, _) => (coarse.get(hx, hy) + coarse.get(hx, hy + 1)) * 0.5,
+        _ => (coarse.get(hx, hy) + coarse.get(hx + 1, hy + 1)) * 0.5,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(viewer: [f32; 2]) -> MorphParams {
+        MorphParams {
+            viewer,
+            half: 31.0,
+            width: 6.3,
+            enabled: true,
+            boundary: [0, 0, 62, 62],
+            stitched: [true; 4],
+        }
+    }
+
+    #[test]
+    fn zero_inside_one_on_boundary() {
+        let p = params([31.0, 31.0]);
+        assert_eq!(p.alpha(31, 31), 0.0);
+        assert_eq!(p.alpha(20, 40), 0.0);
+        for i in 0..=62 {
+            assert_eq!(p.alpha(0, i), 1.0);
+            assert_eq!(p.alpha(i, 62), 1.0);
+        }
+    }
+
+    #[test]
+    fn blend_endpoints_are_exact() {
+        assert_eq!(blend(3.7, -2.25, 1.0), -2.25);
+        assert_eq!(blend(3.7, -2.25, 0.0), 3.7);
+    }
+}

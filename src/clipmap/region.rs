@@ -1,0 +1,284 @@
+//! Integer rectangles on the base vertex lattice, and the per-level clip,
+//! active and render regions of a geometry clipmap (Losasso & Hoppe 2004,
+//! §3; Brettell ch. 3 for finite maps).
+//!
+//! All coordinates are base-grid vertex indices (i64), inclusive on both ends,
+//! so a level-l region's sides are multiples of its spacing 2^l.
+
+use serde::Serialize;
+
+/// A closed rectangle of lattice vertices `[x0, x1] × [y0, y1]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub struct Rect {
+    pub x0: i64,
+    pub y0: i64,
+    pub x1: i64,
+    pub y1: i64,
+}
+
+impl Rect {
+    pub const fn new(x0: i64, y0: i64, x1: i64, y1: i64) -> Self {
+        Rect { x0, y0, x1, y1 }
+    }
+    /// True when the rectangle encloses no cell (zero width or height).
+    pub fn is_degenerate(&self) -> bool {
+        self.x1 <= self.x0 || self.y1 <= self.y0
+    }
+    pub fn width(&self) -> i64 {
+        self.x1 - self.x0
+    }
+    pub fn height(&self) -> i64 {
+        self.y1 - self.y0
+    }
+    /// Overlap of two rectangles; `None` if it is not a proper rectangle.
+    pub fn intersect(&self, o: &Rect) -> Option<Rect> {
+        let r = Rect::new(
+            self.x0.max(o.x0),
+            self.y0.max(o.y0),
+            self.x1.min(o.x1),
+            self.y1.min(o.y1),
+        );
+        (!r.is_degenerate()).then_some(r)
+    }
+    pub fn contains(&self, o: &Rect) -> bool {
+        o.x0 >= self.x0 && o.y0 >= self.y0 && o.x1 <= self.x1 && o.y1 <= self.y1
+    }
+    pub fn contains_point(&self, x: i64, y: i64) -> bool {
+        x >= self.x0 && x <= self.x1 && y >= self.y0 && y <= self.y1
+    }
+    /// Shrinks every side by `d`, except sides that lie on `bounds`' own
+    /// sides: there is no coarser neighbour beyond a map edge to keep a margin
+    /// from.
+    pub fn erode_within(&self, d: i64, bounds: &Rect) -> Rect {
+        let s = self.sides_on(bounds);
+        Rect::new(
+            self.x0 + if s[0] { 0 } else { d },
+            self.y0 + if s[1] { 0 } else { d },
+            self.x1 - if s[2] { 0 } else { d },
+            self.y1 - if s[3] { 0 } else { d },
+        )
+    }
+    /// Which sides (x0, y0, x1, y1) coincide with the same side of `bounds`.
+    pub fn sides_on(&self, bounds: &Rect) -> [bool; 4] {
+        [
+            self.x0 == bounds.x0,
+            self.y0 == bounds.y0,
+            self.x1 == bounds.x1,
+            self.y1 == bounds.y1,
+        ]
+    }
+    /// `self` minus `hole` (which must lie inside) as at most 4 rectangles that
+    /// share only boundary lines: a top and bottom band across the full width,
+    /// and left and right bands between them.
+    pub fn minus(&self, hole: Option<&Rect>) -> Vec<Rect> {
+        let Some(h) = hole else {
+            return vec![*self];
+        };
+        debug_assert!(self.contains(h));
+        [
+            Rect::new(self.x0, self.y0, self.x1, h.y0),
+            Rect::new(self.x0, h.y1, self.x1, self.y1),
+            Rect::new(self.x0, h.y0, h.x0, h.y1),
+            Rect::new(h.x1, h.y0, self.x1, h.y1),
+        ]
+        .into_iter()
+        .filter(|r| !r.is_degenerate())
+        .collect()
+    }
+    pub fn cell_area(&self) -> i64 {
+        self.width() * self.height()
+    }
+}
+
+/// Parameters that fix a clipmap's region layout.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RegionParams {
+    /// Grid size n = 2^k − 1 vertices per side.
+    pub n: i64,
+    /// Number of levels L.
+    pub levels: usize,
+    /// Usable map bounds (base vertices); `None` for an unbounded layout where
+    /// active regions are the full clip regions (GPU Gems 2 footprints).
+    pub map: Option<Rect>,
+}
+
+/// The regions of one level.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct LevelRegions {
+    /// Window origin in level-l units: the clip region starts at origin·2^l.
+    pub origin: [i64; 2],
+    /// The n×n window held in the level's toroid.
+    pub clip: Rect,
+    /// What this level covers when rendered; `None` if the level is inactive.
+    pub active: Option<Rect>,
+    /// Sides of `active` (x0, y0, x1, y1) on the map edge: no coarser level
+    /// lies beyond them, so they get neither morphing nor a stitching ring.
+    pub map_sides: [bool; 4],
+}
+
+/// m = (n + 1) / 4: the GPU Gems 2 block size.
+pub fn block_size(n: i64) -> i64 {
+    (n + 1) / 4
+}
+
+/// Window origins of all levels, finest first, for a viewer at `v` (base-grid
+/// units). Level 0 is the even origin that centres its window within one
+/// texel of the viewer; each coarser origin is then f − m or f − m + 1
+/// (f = finer origin / 2), whichever is even. The finer window so sits m − 1 or
+/// m coarse cells inside the coarser one (the four trim positions of GPU
+/// Gems 2), every centre stays within one level texel of the viewer, and the
+/// boundaries lie on even vertices of the next coarser level.
+pub fn window_origins(n: i64, levels: usize, v: [f64; 2]) -> Vec<[i64; 2]> {
+    let h = ((n - 1) / 2) as f64;
+    let m = block_size(n);
+    let mut o = [0usize, 1].map(|a| 2 * ((v[a] - h) / 2.0 + 0.5).floor() as i64);
+    let mut out = Vec::with_capacity(levels);
+    for _ in 0..levels {
+        out.push(o);
+        o = o.map(|c| {
+            let f = c / 2;
+            if (f - m).rem_euclid(2) == 0 {
+                f - m
+            } else {
+                f - m + 1
+            }
+        });
+    }
+    out
+}
+
+/// Clip, active and render regions for every level, finest first.
+///
+/// Active regions are built coarse to fine: the coarsest is its clip region
+/// cropped to the map; each finer one is its clip region ∩ map ∩ the coarser
+/// active region eroded by 2 coarse texels (not on map sides). A level whose
+/// active region has no cell, and every level finer than it, is inactive.
+pub fn compute(p: &RegionParams, viewer: [f64; 2]) -> Vec<LevelRegions> {
+    let v = match &p.map {
+        Some(m) => [
+            viewer[0].clamp(m.x0 as f64, m.x1 as f64),
+            viewer[1].clamp(m.y0 as f64, m.y1 as f64),
+        ],
+        None => viewer,
+    };
+    let origins = window_origins(p.n, p.levels, v);
+    let mut out: Vec<LevelRegions> = origins
+        .iter()
+        .enumerate()
+        .map(|(l, o)| {
+            let g = 1i64 << l;
+            LevelRegions {
+                origin: *o,
+                clip: Rect::new(
+                    o[0] * g,
+                    o[1] * g,
+                    (o[0] + p.n - 1) * g,
+                    (o[1] + p.n - 1) * g,
+                ),
+                active: None,
+                map_sides: [false; 4],
+            }
+        })
+        .collect();
+    let mut coarser: Option<Rect> = None;
+    for l in (0..p.levels).rev() {
+        let clip = out[l].clip;
+        let active = match (&p.map, l + 1 == p.levels) {
+            (None, _) => Some(clip),
+            (Some(map), true) => clip.intersect(map),
+            (Some(map), false) => coarser.and_then(|c| {
+                let eroded = c.erode_within(2 << (l + 1), map);
+                clip.intersect(map).and_then(|r| r.intersect(&eroded))
+            }),
+        };
+        let Some(a) = active else { break };
+        out[l].active = Some(a);
+        out[l].map_sides = p.map.map(|m| a.sides_on(&m)).unwrap_or([false; 4]);
+        coarser = Some(a);
+    }
+    out
+}
+
+/// Render region of level l: its active region minus the finer active region.
+pub fn render_rects(levels: &[LevelRegions], l: usize) -> Vec<Rect> {
+    match levels[l].active {
+        None => vec![],
+        Some(a) => a.minus(l.checked_sub(1).and_then(|f| levels[f].active).as_ref()),
+    }
+}
+
+/// Usable map bounds for `levels` levels on a `width`×`height` map: each axis
+/// is cut down to a multiple of the coarsest spacing, so every active
+/// boundary lies on even vertices of the next coarser level (Brettell's
+/// finite-map bounds). At most 2^(L−1) − 1 texels are lost per axis.
+pub fn map_bounds(width: usize, height: usize, levels: usize) -> Rect {
+    let g = 1i64 << (levels - 1);
+    Rect::new(
+        0,
+        0,
+        (width as i64 - 1) / g * g,
+        (height as i64 - 1) / g * g,
+    )
+}
+
+/// The most levels a `width`×`height` map supports with grid size n: beyond
+/// it, either the map cropped to the coarsest spacing has fewer than 2 coarse
+/// cells per axis, or one level's half-window already spans the whole map, so
+/// a coarser one would add nothing from any viewer position.
+pub fn max_levels(width: usize, height: usize, n: i64) -> usize {
+    let (w, h) = (width as i64 - 1, height as i64 - 1);
+    let mut l = 1usize;
+    loop {
+        let g = 1i64 << l; // spacing of a candidate extra level
+        let fits = (w / g) * g >= 2 * g && (h / g) * g >= 2 * g;
+        let half_window_prev = (n - 1) / 2 * (g / 2);
+        if !fits || half_window_prev >= w.max(h) || l >= 30 {
+            return l;
+        }
+        l += 1;
+    }
+}
+
+/// Validates n = 2^k − 1 with k ≥ 4 (n ≥ 15, so the transition band never
+/// reaches a level's inner boundary) and n ≤ 4095.
+pub fn check_n(n: i64) -> Result<(), String> {
+    let ok = (15..=4095).contains(&n) && (n + 1) & n == 0;
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "grid size n must be 2^k − 1 with 15 ≤ n ≤ 4095 (e.g. 15, 31, 63, 127, 255), got {n}"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn n_validation() {
+        for n in [15, 31, 63, 127, 255, 4095] {
+            assert!(check_n(n).is_ok(), "{n}");
+        }
+        for n in [0, 7, 16, 64, 100, 257, 8191] {
+            assert!(check_n(n).is_err(), "{n}");
+        }
+    }
+
+    #[test]
+    fn minus_gives_four_bands_with_the_right_area() {
+        let a = Rect::new(0, 0, 20, 20);
+        let h = Rect::new(4, 6, 12, 14);
+        let parts = a.minus(Some(&h));
+        assert_eq!(parts.len(), 4);
+        let area: i64 = parts.iter().map(|r| r.cell_area()).sum();
+        assert_eq!(area, a.cell_area() - h.cell_area());
+    }
+
+    #[test]
+    fn jacksboro_level_limits() {
+        assert_eq!(max_levels(403, 344, 63), 5);
+        assert_eq!(map_bounds(403, 344, 5), Rect::new(0, 0, 400, 336));
+    }
+}

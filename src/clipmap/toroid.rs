@@ -1,0 +1,190 @@
+//! Toroidal arrays: an s×s window onto an unbounded grid, addressed by
+//! Euclidean modulo so negative coordinates work. Moving the window rewrites
+//! only the newly exposed L-shaped region, split into at most 4 rectangles that
+//! do not wrap in toroid space (as Holkner splits `glTexSubImage2D` updates).
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// A half-open rectangle `[x0, x1) × [y0, y1)` in toroid (texel) space.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct TexRect {
+    pub x0: usize,
+    pub y0: usize,
+    pub x1: usize,
+    pub y1: usize,
+}
+
+impl TexRect {
+    pub fn area(&self) -> usize {
+        (self.x1 - self.x0) * (self.y1 - self.y0)
+    }
+    pub fn overlaps(&self, o: &TexRect) -> bool {
+        self.x0 < o.x1 && o.x0 < self.x1 && self.y0 < o.y1 && o.y0 < self.y1
+    }
+    fn contains(&self, x: usize, y: usize) -> bool {
+        x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
+    }
+}
+
+/// A window of `size`×`size` values over world cells `[origin, origin+size)`.
+#[derive(Clone, Debug)]
+pub struct Toroid<T> {
+    size: usize,
+    origin: Option<[i64; 2]>,
+    data: Vec<T>,
+}
+
+/// Cyclic interval `[start, start+len)` on a circle of `s` texels, split into
+/// non-wrapping half-open pieces.
+fn split_cyclic(start: usize, len: usize, s: usize) -> Vec<(usize, usize)> {
+    if len == 0 {
+        vec![]
+    } else if start + len <= s {
+        vec![(start, start + len)]
+    } else {
+        vec![(start, s), (0, start + len - s)]
+    }
+}
+
+/// The toroid-space rectangles to rewrite when a window of size `s` moves
+/// from `old` to `new` (world origins). A first fill, or a jump of a full
+/// window or more, rewrites everything as one rectangle.
+pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> Vec<TexRect> {
+    let full = vec![TexRect {
+        x0: 0,
+        y0: 0,
+        x1: s,
+        y1: s,
+    }];
+    let Some(old) = old else { return full };
+    let d = [new[0] - old[0], new[1] - old[1]];
+    if d[0].unsigned_abs() as usize >= s || d[1].unsigned_abs() as usize >= s {
+        return full;
+    }
+    // Per axis: the exposed cyclic interval N and the kept one K.
+    let axis = |a: usize| {
+        let len = d[a].unsigned_abs() as usize;
+        let start_world = if d[a] > 0 { old[a] + s as i64 } else { new[a] };
+        let start = start_world.rem_euclid(s as i64) as usize;
+        let exposed = split_cyclic(start, len, s);
+        let kept = split_cyclic((start + len) % s, s - len, s);
+        (exposed, kept)
+    };
+    let (nx, kx) = axis(0);
+    let (ny, ky) = axis(1);
+    let rect = |(x0, x1): (usize, usize), (y0, y1): (usize, usize)| TexRect { x0, y0, x1, y1 };
+    // Either full-width rows of N_y plus N_x × K_y, or full-height columns of
+    // N_x plus K_x × N_y; the cheaper split never needs more than 4.
+    let rows_first: Vec<TexRect> = ny
+        .iter()
+        .map(|&y| rect((0, s), y))
+        .chain(nx.iter().flat_map(|&x| ky.iter().map(move |&y| rect(x, y))))
+        .collect();
+    let cols_first: Vec<TexRect> = nx
+        .iter()
+        .map(|&x| rect(x, (0, s)))
+        .chain(kx.iter().flat_map(|&x| ny.iter().map(move |&y| rect(x, y))))
+        .collect();
+    if rows_first.len() <= cols_first.len() {
+        rows_first
+    } else {
+        cols_first
+    }
+}
+
+impl<T: Copy + Default + Send + Sync> Toroid<T> {
+    pub fn new(size: usize) -> Self {
+        Toroid {
+            size,
+            origin: None,
+            data: vec![T::default(); size * size],
+        }
+    }
+    pub fn size(&self) -> usize {
+        self.size
+    }
+    /// World origin of the window, once filled.
+    pub fn origin(&self) -> Option<[i64; 2]> {
+        self.origin
+    }
+    /// Toroid texel index of world cell (x, y).
+    #[inline]
+    pub fn index(&self, x: i64, y: i64) -> usize {
+        let s = self.size as i64;
+        (y.rem_euclid(s) * s + x.rem_euclid(s)) as usize
+    }
+    /// Value at world cell (x, y); the cell must be inside the window.
+    #[inline]
+    pub fn get(&self, x: i64, y: i64) -> T {
+        debug_assert!(
+            self.in_window(x, y),
+            "({x},{y}) outside window {:?}",
+            self.origin
+        );
+        self.data[self.index(x, y)]
+    }
+    pub fn in_window(&self, x: i64, y: i64) -> bool {
+        self.origin.is_some_and(|o| {
+            let s = self.size as i64;
+            x >= o[0] && x < o[0] + s && y >= o[1] && y < o[1] + s
+        })
+    }
+    /// Raw texels in toroid order (row-major), e.g. for a texture upload.
+    pub fn texels(&self) -> &[T] {
+        &self.data
+    }
+    /// World coordinate held by toroid column/row `t` for window origin `o`.
+    #[inline]
+    pub fn world_of(t: usize, o: i64, s: usize) -> i64 {
+        o + (t as i64 - o).rem_euclid(s as i64)
+    }
+
+    /// Moves the window to `new` and rewrites exactly the exposed texels with
+    /// `fill(world_x, world_y)`. Returns the rectangles rewritten.
+    pub fn move_to(&mut self, new: [i64; 2], fill: impl Fn(i64, i64) -> T + Sync) -> Vec<TexRect> {
+        let s = self.size;
+        let rects = update_rects(self.origin, new, s);
+        self.data
+            .par_chunks_mut(s)
+            .enumerate()
+            .for_each(|(ty, row)| {
+                let wy = Self::world_of(ty, new[1], s);
+                for r in rects.iter().filter(|r| ty >= r.y0 && ty < r.y1) {
+                    for (tx, v) in row.iter_mut().enumerate().take(r.x1).skip(r.x0) {
+                        debug_assert!(r.contains(tx, ty));
+                        *v = fill(Self::world_of(tx, new[0], s), wy);
+                    }
+                }
+            });
+        self.origin = Some(new);
+        rects
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diagonal_move_rewrites_2ms_minus_m2() {
+        let s = 31;
+        for m in 1..s {
+            let r = update_rects(Some([-5, 7]), [-5 + m as i64, 7 - m as i64], s);
+            let area: usize = r.iter().map(|r| r.area()).sum();
+            assert_eq!(area, 2 * m * s - m * m, "m = {m}");
+            assert!(r.len() <= 4);
+        }
+    }
+
+    #[test]
+    fn negative_coordinates_address_correctly() {
+        let mut t = Toroid::<i64>::new(7);
+        t.move_to([-20, -3], |x, y| x * 1000 + y);
+        for y in -3..4 {
+            for x in -20..-13 {
+                assert_eq!(t.get(x, y), x * 1000 + y);
+            }
+        }
+    }
+}

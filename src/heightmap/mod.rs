@@ -1,0 +1,213 @@
+//! Heightmaps: an f32 grid with a cell size and a no-data mask, and the
+//! readers that produce one from files or from a seeded generator.
+//!
+//! Grid convention: `(col, row)`, row 0 is north, col 0 is west. Heights are
+//! metres. No-data texels (declared no-data, NaN or ±inf) are counted, kept in
+//! a mask, and filled with the lowest valid height so every later stage can
+//! assume finite values.
+
+mod asc;
+mod image_file;
+pub mod procedural;
+mod raw;
+mod sidecar;
+mod tiff_file;
+
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// The largest heightmap accepted, in texels (2^28 ≈ 268 M, about 1.3 GiB with
+/// its mask). Larger inputs are refused before any allocation.
+pub const MAX_TEXELS: u64 = 1 << 28;
+/// The largest accepted side length, in texels.
+pub const MAX_SIDE: u64 = 1 << 20;
+
+/// A rectangular f32 height grid.
+#[derive(Clone, Debug)]
+pub struct Heightmap {
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+    nodata: Vec<bool>,
+    nodata_count: usize,
+    /// Cell size in metres along x (columns) and y (rows).
+    pub cell_size: [f64; 2],
+    /// Short name of the source format (`png8`, `png16`, `tiff-f32`, `asc`, …).
+    pub format: String,
+}
+
+/// Checks a width × height against [`MAX_SIDE`] and [`MAX_TEXELS`].
+pub fn check_dimensions(width: u64, height: u64) -> std::result::Result<(), String> {
+    if width == 0 || height == 0 {
+        return Err(format!("zero-sized image ({width}×{height})"));
+    }
+    if width < 2 || height < 2 {
+        return Err(format!(
+            "a heightmap needs at least 2×2 texels, got {width}×{height}"
+        ));
+    }
+    if width > MAX_SIDE || height > MAX_SIDE || width * height > MAX_TEXELS {
+        return Err(format!(
+            "dimensions {width}×{height} exceed the limit of {MAX_SIDE} per side and {MAX_TEXELS} texels"
+        ));
+    }
+    Ok(())
+}
+
+impl Heightmap {
+    /// Builds a heightmap from raw values. Non-finite values and values equal
+    /// to `nodata_value` become no-data. Fails if the dimensions are out of
+    /// range, the buffer length is wrong, or no texel is valid.
+    pub fn from_values(
+        width: usize,
+        height: usize,
+        values: Vec<f32>,
+        nodata_value: Option<f32>,
+        cell_size: [f64; 2],
+        format: &str,
+    ) -> std::result::Result<Self, String> {
+        check_dimensions(width as u64, height as u64)?;
+        if values.len() != width * height {
+            return Err(format!(
+                "expected {} values for {width}×{height}, found {}",
+                width * height,
+                values.len()
+            ));
+        }
+        if !(cell_size[0].is_finite()
+            && cell_size[1].is_finite()
+            && cell_size[0] > 0.0
+            && cell_size[1] > 0.0)
+        {
+            return Err(format!(
+                "cell size must be finite and positive, got {:?}",
+                cell_size
+            ));
+        }
+        let is_nodata = |v: f32| !v.is_finite() || nodata_value == Some(v);
+        let nodata: Vec<bool> = values.iter().map(|&v| is_nodata(v)).collect();
+        let nodata_count = nodata.iter().filter(|&&b| b).count();
+        let fill = values
+            .iter()
+            .zip(&nodata)
+            .filter(|(_, &nd)| !nd)
+            .map(|(&v, _)| v)
+            .fold(f32::INFINITY, f32::min);
+        if !fill.is_finite() {
+            return Err("no valid height: every texel is no-data".into());
+        }
+        let data = values
+            .into_iter()
+            .zip(&nodata)
+            .map(|(v, &nd)| if nd { fill } else { v })
+            .collect();
+        Ok(Heightmap {
+            width,
+            height,
+            data,
+            nodata,
+            nodata_count,
+            cell_size,
+            format: format.into(),
+        })
+    }
+
+    /// Reads a heightmap, choosing the reader by file extension: `.png`,
+    /// `.tga`, `.tif`/`.tiff`, `.asc`, `.f32`/`.raw`/`.bin` (with a JSON sidecar).
+    pub fn load(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "png" | "tga" => image_file::read(path),
+            "tif" | "tiff" => tiff_file::read(path),
+            "asc" => asc::read(path),
+            "f32" | "raw" | "bin" => raw::read(path),
+            _ => Err(Error::file(
+                path,
+                format!(
+                    "unknown heightmap extension '{ext}' (expected png, tga, tif, tiff, asc, f32, raw or bin)"
+                ),
+            )),
+        }
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Heights in row-major order (no-data texels hold the fill value).
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+    /// Number of no-data texels (declared no-data, NaN or inf).
+    pub fn nodata_count(&self) -> usize {
+        self.nodata_count
+    }
+    /// Whether texel (x, y) is no-data.
+    pub fn is_nodata(&self, x: usize, y: usize) -> bool {
+        self.nodata[y * self.width + x]
+    }
+    /// Height at (x, y); the caller keeps x, y in range.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> f32 {
+        self.data[y * self.width + x]
+    }
+    /// Height at (x, y) with coordinates clamped to the map.
+    #[inline]
+    pub fn get_clamped(&self, x: i64, y: i64) -> f32 {
+        let xc = x.clamp(0, self.width as i64 - 1) as usize;
+        let yc = y.clamp(0, self.height as i64 - 1) as usize;
+        self.data[yc * self.width + xc]
+    }
+    /// (min, max) over valid texels.
+    pub fn min_max(&self) -> (f32, f32) {
+        self.data
+            .iter()
+            .zip(&self.nodata)
+            .filter(|(_, &nd)| !nd)
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (&v, _)| {
+                (lo.min(v), hi.max(v))
+            })
+    }
+    /// The no-data mask in row-major order.
+    pub fn nodata_mask(&self) -> &[bool] {
+        &self.nodata
+    }
+}
+
+/// Converts a reader's plain-string failure into an error naming the file.
+pub(crate) fn named<T>(path: &Path, r: std::result::Result<T, String>) -> Result<T> {
+    r.map_err(|reason| Error::file(path, reason))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nan_and_inf_become_counted_nodata() {
+        let v = vec![1.0, f32::NAN, f32::INFINITY, 4.0, -9999.0, 2.0];
+        let h = Heightmap::from_values(3, 2, v, Some(-9999.0), [1.0, 1.0], "t").unwrap();
+        assert_eq!(h.nodata_count(), 3);
+        assert_eq!(h.min_max(), (1.0, 4.0));
+        assert!(h.data().iter().all(|v| v.is_finite()));
+        assert_eq!(
+            h.get(1, 0),
+            1.0,
+            "no-data filled with the lowest valid height"
+        );
+    }
+
+    #[test]
+    fn dimension_limits() {
+        assert!(check_dimensions(0, 5).is_err());
+        assert!(check_dimensions(1, 5).is_err());
+        assert!(check_dimensions(MAX_SIDE + 1, 2).is_err());
+        assert!(check_dimensions(1 << 15, 1 << 14).is_err());
+        assert!(check_dimensions(403, 344).is_ok());
+    }
+}

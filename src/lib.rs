@@ -1,0 +1,24 @@
+//! # terraclip
+//!
+//! A CPU reference implementation of geometry-clipmap terrain rendering
+//! (Losasso & Hoppe 2004; GPU Gems 2 ch. 2; Holkner; Brettell).
+//!
+//! ## Usage
+//! Load a [`heightmap::Heightmap`], build a [`pyramid::Pyramid`], create a
+//! [`clipmap::Clipmap`], call [`clipmap::Clipmap::update`] with the viewer and
+//! [`clipmap::Clipmap::meshes`] for the frame's geometry.
+//!
+//! ## Implementation
+//! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame.
+//! See `README.md` for the pipeline and the CLI.
+
+pub mod camera;
+pub mod clipmap;
+pub mod diagram;
+pub mod error;
+pub mod heightmap;
+pub mod pyramid;
+pub mod scene;
+pub mod world;
+
+pub use error::{Error, Result};

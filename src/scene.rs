@@ -1,0 +1,346 @@
+//! Scenes: TOML files that say which terrain to load, how to filter and LOD
+//! it, where the camera is, the image size and the effects. Unknown keys and
+//! bad values are errors that name the file, line and column.
+
+use crate::camera::Camera;
+use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
+use crate::error::{Error, Result};
+use crate::heightmap::procedural::Procedural;
+use crate::heightmap::Heightmap;
+use crate::pyramid::{Filter, Pyramid};
+use crate::world::WorldMap;
+use glam::DVec3;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The embedded default scene (procedural, no files needed).
+pub const DEFAULT_SCENE: &str = include_str!("default_scene.toml");
+
+/// Largest image side accepted.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+
+/// Effects a scene may list.
+pub const EFFECTS: &[&str] = &[
+    "lambert",
+    "phong",
+    "fog",
+    "shadows",
+    "normal-map",
+    "level-tint",
+    "wireframe",
+    "morph",
+];
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum CellSize {
+    Square(f64),
+    Xy([f64; 2]),
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Terrain {
+    /// Heightmap file, relative to the scene file.
+    pub file: Option<PathBuf>,
+    pub procedural: Option<Procedural>,
+    /// Overrides the file's cell size (metres).
+    pub cell_size: Option<CellSize>,
+    #[serde(default = "one")]
+    pub vertical_scale: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PyramidSpec {
+    #[serde(default = "default_filter")]
+    pub filter: String,
+}
+
+fn default_filter() -> String {
+    "sinc-blackman".into()
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Lod {
+    #[serde(default = "default_scheme")]
+    pub scheme: String,
+    #[serde(default = "default_n")]
+    pub n: i64,
+    pub levels: Option<usize>,
+    #[serde(default)]
+    pub layout: Layout,
+    pub transition: Option<f32>,
+    pub texel_budget: Option<u64>,
+}
+
+fn default_scheme() -> String {
+    "clipmap".into()
+}
+fn default_n() -> i64 {
+    63
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// World position (metres): x east, y north, z up.
+    pub position: [f64; 3],
+    pub look_at: [f64; 3],
+    #[serde(default = "default_fov")]
+    pub fov: f64,
+    #[serde(default = "default_near")]
+    pub near: f64,
+    #[serde(default = "default_far")]
+    pub far: f64,
+}
+
+fn default_fov() -> f64 {
+    60.0
+}
+fn default_near() -> f64 {
+    1.0
+}
+fn default_far() -> f64 {
+    100_000.0
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ImageSpec {
+    pub width: u32,
+    pub height: u32,
+    #[serde(default = "default_background")]
+    pub background: [f32; 3],
+}
+
+fn default_background() -> [f32; 3] {
+    [0.55, 0.7, 0.9]
+}
+
+/// A parsed, validated scene.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub terrain: Terrain,
+    #[serde(default = "default_pyramid")]
+    pub pyramid: PyramidSpec,
+    pub lod: Lod,
+    pub camera: CameraSpec,
+    pub image: ImageSpec,
+    #[serde(default)]
+    pub effects: Vec<String>,
+    /// Folder that relative paths are resolved against.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+    /// Where the scene came from, for error messages.
+    #[serde(skip)]
+    pub origin: String,
+}
+
+fn default_pyramid() -> PyramidSpec {
+    PyramidSpec {
+        filter: default_filter(),
+    }
+}
+
+impl Scene {
+    /// Parses scene text; `origin` names the source in errors.
+    pub fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
+        let mut s: Scene = toml::from_str(text)
+            .map_err(|e| Error::file(origin, format!("invalid scene: {}", e.to_string().trim())))?;
+        s.base_dir = base_dir.to_path_buf();
+        s.origin = origin.to_string();
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Reads a scene file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        Self::parse(&text, &path.display().to_string(), &dir)
+    }
+
+    /// The embedded default scene.
+    pub fn default_scene() -> Self {
+        Self::parse(DEFAULT_SCENE, "<default scene>", Path::new("."))
+            .expect("the embedded default scene is valid")
+    }
+
+    fn bad(&self, field: &str, reason: impl Into<String>) -> Error {
+        Error::value(format!("{}: {field}", self.origin), reason)
+    }
+
+    /// Checks every value that serde's types cannot.
+    pub fn validate(&self) -> Result<()> {
+        match (&self.terrain.file, &self.terrain.procedural) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(self.bad("terrain", "give exactly one of 'file' or 'procedural'"))
+            }
+            _ => {}
+        }
+        if !(self.terrain.vertical_scale.is_finite() && self.terrain.vertical_scale > 0.0) {
+            return Err(self.bad("terrain.vertical_scale", "must be finite and > 0"));
+        }
+        if let Some(c) = &self.terrain.cell_size {
+            let [x, y] = cell_pair(c);
+            if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
+                return Err(self.bad("terrain.cell_size", "must be finite and > 0"));
+            }
+        }
+        Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
+        if self.lod.scheme != "clipmap" {
+            return Err(self.bad(
+                "lod.scheme",
+                format!("unknown scheme '{}' (available: clipmap)", self.lod.scheme),
+            ));
+        }
+        crate::clipmap::region::check_n(self.lod.n).map_err(|r| self.bad("lod.n", r))?;
+        let c = &self.camera;
+        let finite = c.position.iter().chain(&c.look_at).all(|v| v.is_finite());
+        if !finite {
+            return Err(self.bad("camera", "position and look_at must be finite"));
+        }
+        if c.position == c.look_at {
+            return Err(self.bad("camera.look_at", "must differ from position"));
+        }
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(self.bad("camera.fov", format!("must be in (0, 180), got {}", c.fov)));
+        }
+        if !(c.near > 0.0 && c.far > c.near && c.far.is_finite()) {
+            return Err(self.bad("camera", "need 0 < near < far < inf"));
+        }
+        let i = &self.image;
+        if i.width == 0 || i.height == 0 || i.width > MAX_IMAGE_SIDE || i.height > MAX_IMAGE_SIDE {
+            return Err(self.bad(
+                "image",
+                format!(
+                    "size {}×{} must be within 1..={MAX_IMAGE_SIDE} per side",
+                    i.width, i.height
+                ),
+            ));
+        }
+        for e in &self.effects {
+            if !EFFECTS.contains(&e.as_str()) {
+                return Err(self.bad(
+                    "effects",
+                    format!("unknown effect '{e}' (known: {})", EFFECTS.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Loads or generates the terrain, applying the scene's cell size.
+    pub fn heightmap(&self) -> Result<Heightmap> {
+        let mut h = match (&self.terrain.file, &self.terrain.procedural) {
+            (Some(f), _) => Heightmap::load(&self.base_dir.join(f))?,
+            (_, Some(p)) => p
+                .generate()
+                .map_err(|r| self.bad("terrain.procedural", r))?,
+            _ => unreachable!("validated"),
+        };
+        if let Some(c) = &self.terrain.cell_size {
+            h.cell_size = cell_pair(c);
+        }
+        Ok(h)
+    }
+
+    pub fn world(&self, h: &Heightmap) -> WorldMap {
+        WorldMap::new(h.cell_size, self.terrain.vertical_scale)
+    }
+
+    pub fn camera(&self) -> Camera {
+        Camera {
+            eye: DVec3::from_array(self.camera.position),
+            target: DVec3::from_array(self.camera.look_at),
+            fov_y_deg: self.camera.fov,
+            near: self.camera.near,
+            far: self.camera.far,
+            aspect: self.image.width as f64 / self.image.height as f64,
+        }
+    }
+
+    pub fn has_effect(&self, name: &str) -> bool {
+        self.effects.iter().any(|e| e == name)
+    }
+
+    pub fn clipmap_config(&self) -> ClipmapConfig {
+        ClipmapConfig {
+            n: self.lod.n,
+            levels: self.lod.levels,
+            layout: self.lod.layout,
+            transition: self.lod.transition,
+            morph: self.effects.is_empty() || self.has_effect("morph"),
+            texel_budget: self.lod.texel_budget,
+        }
+    }
+
+    /// Heightmap → pyramid → clipmap, updated for the scene's camera.
+    pub fn build_clipmap(&self) -> Result<(Heightmap, Clipmap, WorldMap)> {
+        let h = self.heightmap()?;
+        let world = self.world(&h);
+        let cfg = self.clipmap_config();
+        let max = crate::clipmap::region::max_levels(h.width(), h.height(), cfg.n);
+        let count = cfg.levels.unwrap_or(max);
+        let filter =
+            Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
+        let pyramid = Arc::new(Pyramid::build(&h, filter, count.max(1)));
+        let mut cm = Clipmap::new(pyramid, cfg).map_err(|e| match e {
+            Error::BadValue { field, reason } => self.bad(&field, reason),
+            other => other,
+        })?;
+        cm.update(world.to_grid(DVec3::from_array(self.camera.position)));
+        Ok((h, cm, world))
+    }
+}
+
+fn cell_pair(c: &CellSize) -> [f64; 2] {
+    match *c {
+        CellSize::Square(s) => [s, s],
+        CellSize::Xy(xy) => xy,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_scene_parses() {
+        let s = Scene::default_scene();
+        assert_eq!(s.lod.n, 63);
+    }
+
+    #[test]
+    fn unknown_key_reports_line_and_column() {
+        let text = DEFAULT_SCENE.replace("fov = 60.0", "fov = 60.0\nzoom = 2");
+        let e = Scene::parse(&text, "x.toml", Path::new("."))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("x.toml"), "{e}");
+        assert!(e.contains("line"), "{e}");
+        assert!(e.contains("zoom"), "{e}");
+    }
+
+    #[test]
+    fn bad_n_and_unknown_effect_are_errors() {
+        let t = DEFAULT_SCENE.replace("n = 63", "n = 64");
+        assert!(Scene::parse(&t, "s", Path::new("."))
+            .unwrap_err()
+            .to_string()
+            .contains("2^k"));
+        let t = DEFAULT_SCENE.replace("\"fog\"", "\"bloom\"");
+        assert!(Scene::parse(&t, "s", Path::new("."))
+            .unwrap_err()
+            .to_string()
+            .contains("bloom"));
+    }
+}

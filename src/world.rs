@@ -1,0 +1,45 @@
+//! Mapping between the base vertex grid and world space.
+//!
+//! World space is right-handed, z up: x = east = column × cell_x,
+//! y = north = −row × cell_y, z = height × vertical_scale. Positions are f64;
+//! rendering subtracts a floating origin before going to f32.
+
+use glam::DVec3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldMap {
+    /// Cell size in metres along columns (x) and rows (y).
+    pub cell: [f64; 2],
+    /// Multiplier applied to heights.
+    pub vertical_scale: f64,
+}
+
+impl WorldMap {
+    pub fn new(cell: [f64; 2], vertical_scale: f64) -> Self {
+        WorldMap {
+            cell,
+            vertical_scale,
+        }
+    }
+    /// World position of base-grid point (col, row) at height z.
+    #[inline]
+    pub fn to_world(&self, col: f64, row: f64, z: f64) -> DVec3 {
+        DVec3::new(
+            col * self.cell[0],
+            -row * self.cell[1],
+            z * self.vertical_scale,
+        )
+    }
+    /// Base-grid (col, row) under a world position.
+    #[inline]
+    pub fn to_grid(&self, p: DVec3) -> [f64; 2] {
+        [p.x / self.cell[0], -p.y / self.cell[1]]
+    }
+    /// World-space box of grid rectangle [c0,c1]×[r0,r1] extruded over
+    /// heights [z0, z1].
+    pub fn aabb(&self, c0: f64, r0: f64, c1: f64, r1: f64, z0: f64, z1: f64) -> (DVec3, DVec3) {
+        let a = self.to_world(c0, r0, z0);
+        let b = self.to_world(c1, r1, z1);
+        (a.min(b), a.max(b))
+    }
+}
