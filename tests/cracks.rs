@@ -1,0 +1,192 @@
+//! Watertightness of the morphed mesh, both index layouts, checked exactly on
+//! integer positions and f32 height bits:
+//! - every non-degenerate triangle has positive orientation;
+//! - every directed edge is matched by exactly one reverse edge, except the
+//!   edges on the perimeter of the rendered area, which appear once, in
+//!   order, and add up to the perimeter;
+//! - the triangle areas add up to the rendered area.
+//!
+//! Together these mean the triangles cover the area once, with no gap, no
+//! overlap and no T-junction whose heights disagree (the winding number of
+//! the edge chain is 1 inside and 0 outside). Morph off must break it.
+
+mod common;
+use proptest::prelude::*;
+use std::collections::HashMap;
+use terraclip::clipmap::region::Rect;
+use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
+
+type Key = (i64, i64, u32);
+
+fn key(v: &MeshVertex) -> Key {
+    (v.x, v.y, v.zm.to_bits())
+}
+
+/// Returns a description of the first violation, or None if watertight.
+fn check(cm: &Clipmap) -> Option<String> {
+    let levels = cm.levels();
+    let outer: Rect = levels.iter().rev().find_map(|l| l.regions.active)?;
+    let mut edges: HashMap<(Key, Key), i32> = HashMap::new();
+    let mut area2: i128 = 0;
+    for mesh in cm.meshes(None) {
+        for t in cm.triangles(&mesh) {
+            let [a, b, c] = t;
+            let cross = (b.x - a.x) as i128 * (c.y - a.y) as i128
+                - (b.y - a.y) as i128 * (c.x - a.x) as i128;
+            if cross < 0 {
+                return Some(format!("negative triangle at level {}: {t:?}", mesh.level));
+            }
+            area2 += cross;
+            for (p, q) in [(a, b), (b, c), (c, a)] {
+                *edges.entry((key(&p), key(&q))).or_default() += 1;
+            }
+        }
+    }
+    if area2 != 2 * outer.cell_area() as i128 {
+        return Some(format!(
+            "area {} ≠ rendered area {}",
+            area2 as f64 / 2.0,
+            outer.cell_area()
+        ));
+    }
+    let mut perimeter = 0i64;
+    for (&(p, q), &count) in &edges {
+        if count != 1 {
+            return Some(format!("edge {p:?}→{q:?} used {count} times (overlap)"));
+        }
+        if edges.contains_key(&(q, p)) {
+            continue;
+        }
+        // Unmatched: must run along the outer perimeter, counter-clockwise in
+        // (column, row) space: top eastward, right southward, bottom
+        // westward, left northward.
+        let ok = (p.1 == outer.y0 && q.1 == outer.y0 && q.0 > p.0)
+            || (p.0 == outer.x1 && q.0 == outer.x1 && q.1 > p.1)
+            || (p.1 == outer.y1 && q.1 == outer.y1 && q.0 < p.0)
+            || (p.0 == outer.x0 && q.0 == outer.x0 && q.1 < p.1);
+        if !ok {
+            return Some(format!("unmatched interior edge {p:?}→{q:?}"));
+        }
+        perimeter += (q.0 - p.0).abs() + (q.1 - p.1).abs();
+    }
+    let want = 2 * (outer.width() + outer.height());
+    if perimeter != want {
+        return Some(format!("perimeter {perimeter} ≠ {want}"));
+    }
+    None
+}
+
+fn base(layout: Layout, n: i64) -> Clipmap {
+    common::clipmap(&common::terrain(11, 700, 530), n, None, layout)
+}
+
+fn cases(layout: Layout) -> impl Strategy<Value = (i64, [f64; 2])> {
+    let range = match layout {
+        Layout::Strips => -200.0..900.0,
+        Layout::Footprints => -1e6..1e6,
+    };
+    (prop::sample::select(vec![15i64, 31]), [range.clone(), range])
+}
+
+fn cached(layout: Layout, n: i64) -> Clipmap {
+    use std::sync::OnceLock;
+    static CACHE: OnceLock<Vec<((Layout, i64), Clipmap)>> = OnceLock::new();
+    CACHE
+        .get_or_init(|| {
+            let mut v = vec![];
+            for layout in [Layout::Strips, Layout::Footprints] {
+                for n in [15, 31] {
+                    v.push(((layout, n), base(layout, n)));
+                }
+            }
+            v
+        })
+        .iter()
+        .find(|(k, _)| *k == (layout, n))
+        .expect("cached")
+        .1
+        .clone()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(150))]
+
+    #[test]
+    fn strips_are_watertight((n, v) in cases(Layout::Strips), prev in [-200.0f64..900.0, -200.0f64..900.0]) {
+        let mut cm = cached(Layout::Strips, n);
+        cm.update(prev);
+        cm.update(v);
+        if let Some(e) = check(&cm) { return Err(TestCaseError::fail(e)); }
+    }
+
+    #[test]
+    fn footprints_are_watertight((n, v) in cases(Layout::Footprints)) {
+        let mut cm = cached(Layout::Footprints, n);
+        cm.update(v);
+        if let Some(e) = check(&cm) { return Err(TestCaseError::fail(e)); }
+    }
+
+    /// α is 0 well inside, 1 on stitched boundaries (so z′ = z_c there), and
+    /// moves continuously: a sub-texel viewer move that does not shift the
+    /// windows changes no α by more than the move over w.
+    #[test]
+    fn morph_weights((n, v) in cases(Layout::Strips), d in [-0.02f64..0.02, -0.02f64..0.02]) {
+        let mut cm = cached(Layout::Strips, n);
+        cm.update(v);
+        let mut moved = cm.clone();
+        moved.update([v[0] + d[0], v[1] + d[1]]);
+        for (l, lv) in cm.levels().iter().enumerate() {
+            let Some(a) = lv.regions.active else { continue };
+            let g = lv.spacing();
+            let mp = &lv.morph;
+            for y in a.y0 / g..=a.y1 / g {
+                for x in a.x0 / g..=a.x1 / g {
+                    let vx = cm.vertex(l, x, y);
+                    if !mp.enabled {
+                        prop_assert_eq!(vx.alpha, 0.0);
+                        continue;
+                    }
+                    let rx = (x - lv.regions.origin[0]) as f32 - mp.viewer[0];
+                    let ry = (y - lv.regions.origin[1]) as f32 - mp.viewer[1];
+                    let inner = mp.half - mp.width - 1.0;
+                    if rx.abs() <= inner && ry.abs() <= inner {
+                        prop_assert_eq!(vx.alpha, 0.0);
+                    }
+                    let b = mp.boundary;
+                    let rel = [x - lv.regions.origin[0], y - lv.regions.origin[1]];
+                    let on = (mp.stitched[0] && rel[0] == b[0] as i64) || (mp.stitched[2] && rel[0] == b[2] as i64)
+                        || (mp.stitched[1] && rel[1] == b[1] as i64) || (mp.stitched[3] && rel[1] == b[3] as i64);
+                    if on {
+                        prop_assert_eq!(vx.alpha, 1.0);
+                        prop_assert_eq!(vx.zm.to_bits(), vx.zc.to_bits());
+                    }
+                    if moved.levels()[l].regions == lv.regions {
+                        let va = moved.vertex(l, x, y).alpha;
+                        let bound = (d[0].abs().max(d[1].abs()) / g as f64) as f32 / mp.width + 1e-5;
+                        prop_assert!((va - vx.alpha).abs() <= bound, "α jumped {} → {va}", vx.alpha);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn morph_off_leaves_cracks_that_the_check_finds() {
+    let map = common::terrain(11, 700, 530);
+    let p = std::sync::Arc::new(terraclip::pyramid::Pyramid::build(
+        &map,
+        terraclip::pyramid::Filter::SincBlackman { taps: 7 },
+        4,
+    ));
+    let cfg = terraclip::clipmap::ClipmapConfig {
+        n: 31,
+        levels: Some(4),
+        morph: false,
+        ..Default::default()
+    };
+    let mut cm = Clipmap::new(p, cfg).unwrap();
+    cm.update([350.0, 260.0]);
+    let e = check(&cm).expect("morph off must not be watertight");
+    assert!(e.contains("unmatched") || e.contains("overlap"), "{e}");
+}
