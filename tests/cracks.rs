@@ -85,7 +85,10 @@ fn cases(layout: Layout) -> impl Strategy<Value = (i64, [f64; 2])> {
         Layout::Strips => -200.0..900.0,
         Layout::Footprints => -1e6..1e6,
     };
-    (prop::sample::select(vec![15i64, 31]), [range.clone(), range])
+    (
+        prop::sample::select(vec![15i64, 31]),
+        [range.clone(), range],
+    )
 }
 
 fn cached(layout: Layout, n: i64) -> Clipmap {

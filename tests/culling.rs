@@ -52,14 +52,19 @@ fn check(cm: &Clipmap, cam: &Camera, world: &WorldMap) -> Result<(usize, usize),
             all += 1;
             // Footprint blocks wholly off the map are dropped on purpose.
             let base = &cm.pyramid().levels[0];
-            let off_map = t.iter().all(|v| v.x <= 0) || t.iter().all(|v| v.y <= 0)
-                || t.iter().all(|v| v.x >= base.width as i64 - 1) || t.iter().all(|v| v.y >= base.height as i64 - 1);
+            let off_map = t.iter().all(|v| v.x <= 0)
+                || t.iter().all(|v| v.y <= 0)
+                || t.iter().all(|v| v.x >= base.width as i64 - 1)
+                || t.iter().all(|v| v.y >= base.height as i64 - 1);
             if off_map && cm.config().layout == Layout::Footprints {
                 continue;
             }
             let pts = t.map(|v| world.to_world(v.x as f64, v.y as f64, v.zm as f64));
             if survives_clip(&f, pts) && !kept.contains(&(mesh.level, tri_key(&t))) {
-                return Err(format!("visible triangle culled at level {}: {t:?}", mesh.level));
+                return Err(format!(
+                    "visible triangle culled at level {}: {t:?}",
+                    mesh.level
+                ));
             }
         }
     }

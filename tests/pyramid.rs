@@ -50,7 +50,10 @@ fn nodata_takes_no_part_in_filtering() {
     let map = Heightmap::from_values(n, n, v, None, [1.0, 1.0], "t").unwrap();
     let p = Pyramid::build(&map, Filter::SincBlackman { taps: 11 }, 3);
     for l in &p.levels {
-        assert!(l.data.iter().all(|&x| x == 10.0), "no-data must not pull heights");
+        assert!(
+            l.data.iter().all(|&x| x == 10.0),
+            "no-data must not pull heights"
+        );
     }
 }
 

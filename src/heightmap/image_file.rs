@@ -9,9 +9,10 @@ use std::path::Path;
 
 pub(super) fn read(path: &Path) -> Result<Heightmap> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = image::ImageReader::new(std::io::BufReader::new(file))
-        .with_guessed_format()
-        .map_err(|e| Error::io(path, e))?;
+    // TGA has no magic number, so the format comes from the extension.
+    let format = image::ImageFormat::from_path(path)
+        .map_err(|e| Error::file(path, format!("cannot decode image: {e}")))?;
+    let mut reader = image::ImageReader::with_format(std::io::BufReader::new(file), format);
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_SIDE as u32);
     limits.max_image_height = Some(MAX_SIDE as u32);

@@ -1,0 +1,286 @@
+//! Readers and the CLI on good and bad input: every bad input is a clean
+//! error naming the file and the reason, with a non-zero exit and no panic.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use terraclip::heightmap::Heightmap;
+
+const JACKSBORO: &str = "../shared/data/dem/jacksboro_16.png";
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("terraclip-inputs-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn cli(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into(),
+        String::from_utf8_lossy(&out.stderr).into(),
+    )
+}
+
+/// Asserts a clean failure whose message names `needle` and `reason`.
+fn fails_cleanly(args: &[&str], needle: &str, reason: &str) {
+    let (code, out, err) = cli(args);
+    assert_ne!(code, 0, "{args:?} should fail");
+    assert!(out.is_empty(), "nothing on stdout: {out}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains(needle), "message names {needle}: {err}");
+    assert!(err.contains(reason), "message says {reason}: {err}");
+}
+
+#[test]
+fn info_reports_jacksboro() {
+    if !Path::new(JACKSBORO).exists() {
+        panic!("{JACKSBORO} missing: tests run beside ../shared");
+    }
+    let (code, out, _) = cli(&["info", JACKSBORO, "--json"]);
+    assert_eq!(code, 0);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["width"], 403);
+    assert_eq!(v["height"], 344);
+    assert_eq!(v["min"], 236.0);
+    assert_eq!(v["max"], 1076.0);
+    assert_eq!(v["nodata_count"], 0);
+    assert_eq!(v["format"], "png16+sidecar");
+}
+
+#[test]
+fn diagram_writes_a_png() {
+    let out = tmp("diagram.png");
+    let (code, stdout, err) = cli(&["diagram", "-o", out.to_str().unwrap(), "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert!(v["levels"].as_u64().unwrap() >= 3);
+    let img = image::open(&out).unwrap().to_rgba8();
+    assert_eq!(img.dimensions(), (800, 800));
+    let distinct: std::collections::HashSet<_> = img.pixels().map(|p| p.0).collect();
+    assert!(
+        distinct.len() > 8,
+        "diagram has content: {} colours",
+        distinct.len()
+    );
+}
+
+#[test]
+fn bad_images_are_clean_errors() {
+    let good = std::fs::read(JACKSBORO).unwrap();
+    let trunc = tmp("truncated.png");
+    std::fs::write(&trunc, &good[..good.len() / 3]).unwrap();
+    fails_cleanly(
+        &["info", trunc.to_str().unwrap()],
+        "truncated.png",
+        "cannot decode",
+    );
+    let corrupt = tmp("corrupt.png");
+    let mut bytes = good.clone();
+    for b in bytes.iter_mut().skip(100).take(400) {
+        *b ^= 0x5a;
+    }
+    std::fs::write(&corrupt, &bytes).unwrap();
+    fails_cleanly(
+        &["info", corrupt.to_str().unwrap()],
+        "corrupt.png",
+        "cannot decode",
+    );
+    let empty = tmp("empty.png");
+    std::fs::write(&empty, b"").unwrap();
+    fails_cleanly(&["info", empty.to_str().unwrap()], "empty.png", "");
+    // A PNG header claiming 2^30 × 2^30 pixels.
+    let mut huge = good[..33].to_vec();
+    huge[16..20].copy_from_slice(&(1u32 << 30).to_be_bytes());
+    huge[20..24].copy_from_slice(&(1u32 << 30).to_be_bytes());
+    let huge_path = tmp("huge.png");
+    std::fs::write(&huge_path, &huge).unwrap();
+    fails_cleanly(&["info", huge_path.to_str().unwrap()], "huge.png", "");
+    fails_cleanly(
+        &["info", "/nonexistent/x.png"],
+        "/nonexistent/x.png",
+        "No such file",
+    );
+    fails_cleanly(
+        &["info", tmp("x.xyz").to_str().unwrap()],
+        "x.xyz",
+        "unknown heightmap extension",
+    );
+}
+
+#[test]
+fn ascii_grid_nodata_and_nan() {
+    let p = tmp("grid.asc");
+    std::fs::write(&p, "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 25\nNODATA_value -9999\n1 2 3 4\n5 -9999 nan 8\n9 10 inf 12\n").unwrap();
+    let h = Heightmap::load(&p).unwrap();
+    assert_eq!((h.width(), h.height(), h.nodata_count()), (4, 3, 3));
+    assert_eq!(h.cell_size, [25.0, 25.0]);
+    assert_eq!(h.min_max(), (1.0, 12.0));
+    let bad = tmp("bad.asc");
+    std::fs::write(&bad, "ncols 4\nnrows 3\ncellsize 1\n1 2 3\n").unwrap();
+    fails_cleanly(&["info", bad.to_str().unwrap()], "bad.asc", "truncated");
+    let zero = tmp("zero.asc");
+    std::fs::write(&zero, "ncols 0\nnrows 3\ncellsize 1\n").unwrap();
+    fails_cleanly(&["info", zero.to_str().unwrap()], "zero.asc", "zero-sized");
+    let big = tmp("big.asc");
+    std::fs::write(&big, "ncols 100000\nnrows 100000\ncellsize 1\n1\n").unwrap();
+    fails_cleanly(
+        &["info", big.to_str().unwrap()],
+        "big.asc",
+        "exceed the limit",
+    );
+    let allnan = tmp("allnan.asc");
+    std::fs::write(&allnan, "ncols 2\nnrows 2\ncellsize 1\nnan nan nan nan\n").unwrap();
+    fails_cleanly(
+        &["info", allnan.to_str().unwrap()],
+        "allnan.asc",
+        "no valid height",
+    );
+}
+
+#[test]
+fn raw_f32_with_sidecar() {
+    let p = tmp("dem.f32");
+    let vals: Vec<f32> = vec![1.0, 2.0, f32::NAN, 4.0, -32768.0, 6.0];
+    let bytes: Vec<u8> = vals.iter().flat_map(|v| v.to_le_bytes()).collect();
+    std::fs::write(&p, &bytes).unwrap();
+    std::fs::write(
+        tmp("dem.json"),
+        r#"{"width": 3, "height": 2, "cell_size_m": {"x": 10.0, "y": 20.0}, "nodata": -32768.0, "raw_offset_m": 100.0, "raw_scale_m_per_unit": 2.0}"#,
+    )
+    .unwrap();
+    let h = Heightmap::load(&p).unwrap();
+    assert_eq!(h.nodata_count(), 2);
+    assert_eq!(h.min_max(), (102.0, 112.0));
+    assert_eq!(h.cell_size, [10.0, 20.0]);
+    // Truncated data.
+    std::fs::write(&p, &bytes[..10]).unwrap();
+    fails_cleanly(&["info", p.to_str().unwrap()], "dem.f32", "truncated");
+    // Missing sidecar.
+    let lone = tmp("lone.raw");
+    std::fs::write(&lone, &bytes).unwrap();
+    fails_cleanly(&["info", lone.to_str().unwrap()], "lone.raw", "sidecar");
+}
+
+#[test]
+fn tiff_and_tga_round_trip() {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let (w, h) = (5u32, 4u32);
+    let f: Vec<f32> = (0..w * h).map(|i| i as f32 * 1.5 - 3.0).collect();
+    let p = tmp("f.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+    enc.write_image::<colortype::Gray32Float>(w, h, &f).unwrap();
+    let m = Heightmap::load(&p).unwrap();
+    assert_eq!(
+        (m.width(), m.height(), m.format.as_str()),
+        (5, 4, "tiff-f32")
+    );
+    assert_eq!(m.data(), &f[..]);
+    let u: Vec<u16> = (0..w * h).map(|i| (i * 1000) as u16).collect();
+    let p16 = tmp("u.tiff");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p16).unwrap()).unwrap();
+    enc.write_image::<colortype::Gray16>(w, h, &u).unwrap();
+    let m = Heightmap::load(&p16).unwrap();
+    assert_eq!(m.format, "tiff-u16");
+    assert_eq!(m.min_max(), (0.0, 19000.0));
+    // GeoTIFF: pixel scale gives the cell size, GDAL_NODATA the no-data value.
+    let geo = tmp("geo.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&geo).unwrap()).unwrap();
+    let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
+    img.encoder()
+        .write_tag(
+            tiff::tags::Tag::ModelPixelScaleTag,
+            &[30.0f64, 25.0, 0.0][..],
+        )
+        .unwrap();
+    img.encoder()
+        .write_tag(tiff::tags::Tag::GdalNodata, "1.5")
+        .unwrap();
+    img.write_data(&f).unwrap();
+    let m = Heightmap::load(&geo).unwrap();
+    assert_eq!(m.cell_size, [30.0, 25.0]);
+    assert_eq!(m.nodata_count(), 1, "the texel equal to GDAL_NODATA");
+    let rgb = tmp("rgb.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&rgb).unwrap()).unwrap();
+    enc.write_image::<colortype::RGB8>(2, 2, &[1, 2, 3].repeat(4))
+        .unwrap();
+    fails_cleanly(&["info", rgb.to_str().unwrap()], "rgb.tif", "single-band");
+    let tga = tmp("g.tga");
+    image::GrayImage::from_fn(6, 3, |x, y| image::Luma([(x * 10 + y) as u8]))
+        .save(&tga)
+        .unwrap();
+    let m = Heightmap::load(&tga).unwrap();
+    assert_eq!((m.width(), m.height(), m.format.as_str()), (6, 3, "tga8"));
+    assert_eq!(m.get(5, 2), 52.0);
+}
+
+#[test]
+fn bad_scenes_are_clean_errors() {
+    let base = terraclip::scene::DEFAULT_SCENE;
+    let write = |name: &str, text: String| {
+        let p = tmp(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let p = write("n.toml", base.replace("n = 63", "n = 100"));
+    fails_cleanly(
+        &[
+            "diagram",
+            p.to_str().unwrap(),
+            "-o",
+            tmp("o.png").to_str().unwrap(),
+        ],
+        "n.toml",
+        "2^k − 1",
+    );
+    let p = write("levels.toml", base.replace("n = 63", "n = 63\nlevels = 40"));
+    fails_cleanly(
+        &[
+            "diagram",
+            p.to_str().unwrap(),
+            "-o",
+            tmp("o.png").to_str().unwrap(),
+        ],
+        "levels.toml",
+        "lod.levels",
+    );
+    let p = write("effect.toml", base.replace("\"fog\"", "\"bloom\""));
+    fails_cleanly(
+        &[
+            "diagram",
+            p.to_str().unwrap(),
+            "-o",
+            tmp("o.png").to_str().unwrap(),
+        ],
+        "effect.toml",
+        "unknown effect 'bloom'",
+    );
+    let text = base.replace("fov = 60.0", "fov = 60.0\nzoom = 3");
+    let line = text.lines().position(|l| l.starts_with("zoom")).unwrap() + 1;
+    let p = write("key.toml", text);
+    let at = format!("line {line}, column 1");
+    fails_cleanly(
+        &[
+            "diagram",
+            p.to_str().unwrap(),
+            "-o",
+            tmp("o.png").to_str().unwrap(),
+        ],
+        "key.toml",
+        &at,
+    );
+    fails_cleanly(
+        &[
+            "diagram",
+            p.to_str().unwrap(),
+            "-o",
+            tmp("o.png").to_str().unwrap(),
+        ],
+        "key.toml",
+        "unknown field `zoom`",
+    );
+    assert!(!tmp("o.png").exists(), "no output is written on error");
+}
