@@ -17,18 +17,7 @@ fn tri_key(t: &[MeshVertex; 3]) -> [(i64, i64); 3] {
 fn survives_clip(f: &Frustum, pts: [DVec3; 3]) -> bool {
     let mut poly = pts.to_vec();
     for p in &f.planes {
-        let mut out = vec![];
-        for i in 0..poly.len() {
-            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-            let (da, db) = (Frustum::distance(p, a), Frustum::distance(p, b));
-            if da >= 0.0 {
-                out.push(a);
-            }
-            if (da >= 0.0) != (db >= 0.0) {
-                out.push(a + (b - a) * (da / (da - db)));
-            }
-        }
-        poly = out;
+        poly = terraclip::clipmap::cull::clip_polygon(&poly, p);
         if poly.is_empty() {
             return false;
         }

@@ -220,67 +220,31 @@ fn tiff_and_tga_round_trip() {
 #[test]
 fn bad_scenes_are_clean_errors() {
     let base = terraclip::scene::DEFAULT_SCENE;
-    let write = |name: &str, text: String| {
+    let out = tmp("o.png");
+    // Writes a scene variant and checks `diagram` rejects it cleanly.
+    let rejects = |name: &str, text: &str, reason: &str| {
         let p = tmp(name);
         std::fs::write(&p, text).unwrap();
-        p
+        fails_cleanly(
+            &["diagram", p.to_str().unwrap(), "-o", out.to_str().unwrap()],
+            name,
+            reason,
+        );
     };
-    let p = write("n.toml", base.replace("n = 63", "n = 100"));
-    fails_cleanly(
-        &[
-            "diagram",
-            p.to_str().unwrap(),
-            "-o",
-            tmp("o.png").to_str().unwrap(),
-        ],
-        "n.toml",
-        "2^k − 1",
-    );
-    let p = write("levels.toml", base.replace("n = 63", "n = 63\nlevels = 40"));
-    fails_cleanly(
-        &[
-            "diagram",
-            p.to_str().unwrap(),
-            "-o",
-            tmp("o.png").to_str().unwrap(),
-        ],
+    rejects("n.toml", &base.replace("n = 63", "n = 100"), "2^k − 1");
+    rejects(
         "levels.toml",
+        &base.replace("n = 63", "n = 63\nlevels = 40"),
         "lod.levels",
     );
-    let p = write("effect.toml", base.replace("\"fog\"", "\"bloom\""));
-    fails_cleanly(
-        &[
-            "diagram",
-            p.to_str().unwrap(),
-            "-o",
-            tmp("o.png").to_str().unwrap(),
-        ],
+    rejects(
         "effect.toml",
+        &base.replace("\"fog\"", "\"bloom\""),
         "unknown effect 'bloom'",
     );
     let text = base.replace("fov = 60.0", "fov = 60.0\nzoom = 3");
     let line = text.lines().position(|l| l.starts_with("zoom")).unwrap() + 1;
-    let p = write("key.toml", text);
-    let at = format!("line {line}, column 1");
-    fails_cleanly(
-        &[
-            "diagram",
-            p.to_str().unwrap(),
-            "-o",
-            tmp("o.png").to_str().unwrap(),
-        ],
-        "key.toml",
-        &at,
-    );
-    fails_cleanly(
-        &[
-            "diagram",
-            p.to_str().unwrap(),
-            "-o",
-            tmp("o.png").to_str().unwrap(),
-        ],
-        "key.toml",
-        "unknown field `zoom`",
-    );
-    assert!(!tmp("o.png").exists(), "no output is written on error");
+    rejects("key.toml", &text, &format!("line {line}, column 1"));
+    rejects("key.toml", &text, "unknown field `zoom`");
+    assert!(!out.exists(), "no output is written on error");
 }

@@ -48,7 +48,7 @@ pub fn classify(f: &Frustum, lo: DVec3, hi: DVec3) -> Class {
 }
 
 /// Clips a convex polygon against one plane (Sutherland–Hodgman).
-fn clip_polygon(poly: &[DVec3], plane: &DVec4) -> Vec<DVec3> {
+pub fn clip_polygon(poly: &[DVec3], plane: &DVec4) -> Vec<DVec3> {
     let mut out = Vec::with_capacity(poly.len() + 2);
     for i in 0..poly.len() {
         let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
