@@ -119,26 +119,29 @@ fn ascii_grid_nodata_and_nan() {
     assert_eq!((h.width(), h.height(), h.nodata_count()), (4, 3, 3));
     assert_eq!(h.cell_size, [25.0, 25.0]);
     assert_eq!(h.min_max(), (1.0, 12.0));
-    let bad = tmp("bad.asc");
-    std::fs::write(&bad, "ncols 4\nnrows 3\ncellsize 1\n1 2 3\n").unwrap();
-    fails_cleanly(&["info", bad.to_str().unwrap()], "bad.asc", "truncated");
-    let zero = tmp("zero.asc");
-    std::fs::write(&zero, "ncols 0\nnrows 3\ncellsize 1\n").unwrap();
-    fails_cleanly(&["info", zero.to_str().unwrap()], "zero.asc", "zero-sized");
-    let big = tmp("big.asc");
-    std::fs::write(&big, "ncols 100000\nnrows 100000\ncellsize 1\n1\n").unwrap();
-    fails_cleanly(
-        &["info", big.to_str().unwrap()],
-        "big.asc",
-        "exceed the limit",
-    );
-    let allnan = tmp("allnan.asc");
-    std::fs::write(&allnan, "ncols 2\nnrows 2\ncellsize 1\nnan nan nan nan\n").unwrap();
-    fails_cleanly(
-        &["info", allnan.to_str().unwrap()],
-        "allnan.asc",
-        "no valid height",
-    );
+    // Each malformed grid is rejected with the file name and the reason.
+    for (name, text, reason) in [
+        (
+            "bad.asc",
+            "ncols 4\nnrows 3\ncellsize 1\n1 2 3\n",
+            "truncated",
+        ),
+        ("zero.asc", "ncols 0\nnrows 3\ncellsize 1\n", "zero-sized"),
+        (
+            "big.asc",
+            "ncols 100000\nnrows 100000\ncellsize 1\n1\n",
+            "exceed the limit",
+        ),
+        (
+            "allnan.asc",
+            "ncols 2\nnrows 2\ncellsize 1\nnan nan nan nan\n",
+            "no valid height",
+        ),
+    ] {
+        let p = tmp(name);
+        std::fs::write(&p, text).unwrap();
+        fails_cleanly(&["info", p.to_str().unwrap()], name, reason);
+    }
 }
 
 #[test]

@@ -250,6 +250,7 @@ impl Clipmap {
             }
             stats.levels_deferred = d + 1;
         }
+        let clamped = region::clamp_viewer(self.params.map.as_ref(), viewer);
         for l in 0..count {
             let morph_on = self.cfg.morph
                 && l + 1 < count
@@ -259,8 +260,8 @@ impl Clipmap {
             let g = (1i64 << l) as f64;
             let o = lv.regions.origin;
             lv.morph.viewer = [
-                (viewer_clamped(&self.params, viewer)[0] / g - o[0] as f64) as f32,
-                (viewer_clamped(&self.params, viewer)[1] / g - o[1] as f64) as f32,
+                (clamped[0] / g - o[0] as f64) as f32,
+                (clamped[1] / g - o[1] as f64) as f32,
             ];
             lv.morph.enabled = morph_on;
             if let Some(a) = lv.regions.active {
@@ -451,15 +452,5 @@ impl Clipmap {
                 })
                 .collect(),
         }
-    }
-}
-
-fn viewer_clamped(p: &RegionParams, v: [f64; 2]) -> [f64; 2] {
-    match &p.map {
-        Some(m) => [
-            v[0].clamp(m.x0 as f64, m.x1 as f64),
-            v[1].clamp(m.y0 as f64, m.y1 as f64),
-        ],
-        None => v,
     }
 }

@@ -147,6 +147,18 @@ pub fn window_origins(n: i64, levels: usize, v: [f64; 2]) -> Vec<[i64; 2]> {
     out
 }
 
+/// The viewer position the windows centre on: clamped into the usable map,
+/// so a viewer beyond an edge still sees every level.
+pub fn clamp_viewer(map: Option<&Rect>, v: [f64; 2]) -> [f64; 2] {
+    match map {
+        Some(m) => [
+            v[0].clamp(m.x0 as f64, m.x1 as f64),
+            v[1].clamp(m.y0 as f64, m.y1 as f64),
+        ],
+        None => v,
+    }
+}
+
 /// Clip, active and render regions for every level, finest first.
 ///
 /// Active regions are built coarse to fine: the coarsest is its clip region
@@ -154,13 +166,7 @@ pub fn window_origins(n: i64, levels: usize, v: [f64; 2]) -> Vec<[i64; 2]> {
 /// active region eroded by 2 coarse texels (not on map sides). A level whose
 /// active region has no cell, and every level finer than it, is inactive.
 pub fn compute(p: &RegionParams, viewer: [f64; 2]) -> Vec<LevelRegions> {
-    let v = match &p.map {
-        Some(m) => [
-            viewer[0].clamp(m.x0 as f64, m.x1 as f64),
-            viewer[1].clamp(m.y0 as f64, m.y1 as f64),
-        ],
-        None => viewer,
-    };
+    let v = clamp_viewer(p.map.as_ref(), viewer);
     let origins = window_origins(p.n, p.levels, v);
     let mut out: Vec<LevelRegions> = origins
         .iter()
