@@ -18,6 +18,7 @@ pub mod diagram;
 pub mod error;
 pub mod heightmap;
 pub mod pyramid;
+pub mod raster;
 pub mod scene;
 pub mod world;
 

@@ -1,0 +1,342 @@
+//! The reference rasteriser: clip-space triangles in, a depth buffer and a
+//! per-pixel triangle id (a visibility buffer) out, following
+//! `RASTER_RULES.md` so that it is bit-identical to lavapipe.
+//!
+//! Stages: `setup` (viewport, snap, planes), `clip` (Mesa's clipper),
+//! `bin` (64×64 tiles), `tile` (scalar coverage + depth) and `simd` (its
+//! 8-lane twin). Shading is not done here: [`Raster::interpolate`] evaluates
+//! a visible triangle's varyings at a pixel, so the shading stage pays only
+//! for pixels that survive the depth test.
+//!
+//! Determinism: triangles are set up in parallel but collected in submission
+//! order; tiles are independent and each walks its triangles in that order;
+//! so the result does not depend on the thread count or on the path.
+
+pub mod bin;
+pub mod clip;
+pub mod setup;
+pub mod simd;
+pub mod tile;
+
+use clip::{ClipVertex, MAX_VARYINGS};
+use rayon::prelude::*;
+use setup::{Edge, Plane, PlaneSetup, Viewport, WinVertex};
+
+/// Triangle id of a pixel that nothing covered.
+pub const NONE: u32 = u32::MAX;
+
+/// Triangles in clip space with per-vertex varyings.
+#[derive(Clone, Copy, Debug)]
+pub struct Mesh<'a> {
+    /// Clip-space position per vertex.
+    pub clip: &'a [[f32; 4]],
+    /// `linear.len()` varyings per vertex, vertex-major.
+    pub attrs: &'a [f32],
+    /// Per varying: true = screen-linear (noperspective), false =
+    /// perspective-correct.
+    pub linear: &'a [bool],
+    pub triangles: &'a [[u32; 3]],
+    /// A flat value per triangle (the clipmap level, say).
+    pub flat: &'a [u32],
+}
+
+/// Which inner loop to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Path {
+    /// One pixel at a time.
+    Scalar,
+    /// Eight pixels at a time (AVX2 + FMA when the CPU has them).
+    Simd,
+}
+
+impl Path {
+    /// `TERRACLIP_SIMD=0` selects the scalar path; anything else the 8-lane
+    /// one. CI runs the goldens both ways.
+    pub fn from_env() -> Self {
+        match std::env::var("TERRACLIP_SIMD").as_deref() {
+            Ok("0") | Ok("off") | Ok("scalar") => Path::Scalar,
+            _ => Path::Simd,
+        }
+    }
+}
+
+/// A set-up triangle: edges, pixel bounds, depth and 1/w planes.
+#[derive(Clone, Copy, Debug)]
+pub struct Tri {
+    pub edges: [Edge; 3],
+    /// Inclusive pixel bounds (x0, y0, x1, y1), inside the target.
+    pub bbox: [i32; 4],
+    pub z: Plane,
+    pub oow: Plane,
+    pub flat: u32,
+}
+
+/// What the rasteriser saw.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct RasterStats {
+    pub input_triangles: usize,
+    /// Vertices with a NaN or infinite clip coordinate (their triangles are
+    /// dropped).
+    pub non_finite_vertices: usize,
+    /// Triangles wholly outside one clip plane.
+    pub rejected: usize,
+    /// Triangles that needed the clipper.
+    pub clipped: usize,
+    /// Triangles after clipping that reached setup with non-zero area.
+    pub setup: usize,
+    /// Pixels covered in the end.
+    pub covered_pixels: usize,
+}
+
+/// The rasteriser's output: depth, visibility and the planes to shade with.
+#[derive(Clone, Debug)]
+pub struct Raster {
+    pub width: u32,
+    pub height: u32,
+    /// Depth32Float, cleared to 1.0, tested LESS.
+    pub depth: Vec<f32>,
+    /// Index into `tris` per pixel, or [`NONE`].
+    pub prim: Vec<u32>,
+    pub tris: Vec<Tri>,
+    /// `linear.len()` planes per triangle in `tris`.
+    pub planes: Vec<Plane>,
+    pub linear: Vec<bool>,
+    pub stats: RasterStats,
+}
+
+impl Raster {
+    /// Rule 5: the varyings of triangle `id` at pixel (px, py), perspective
+    /// correct as `plane(a·oow) · (1 / plane(oow))` unless screen-linear.
+    #[inline]
+    pub fn interpolate(&self, id: u32, px: u32, py: u32, out: &mut [f32]) {
+        let n = self.linear.len();
+        let t = &self.tris[id as usize];
+        let (x, y) = (px as f32, py as f32);
+        let w = 1.0 / t.oow.eval(x, y);
+        let planes = &self.planes[id as usize * n..id as usize * n + n];
+        for k in 0..n {
+            let v = planes[k].eval(x, y);
+            out[k] = if self.linear[k] { v } else { v * w };
+        }
+    }
+
+    /// Plane `k` of triangle `id` (its screen gradient, for wireframe width).
+    pub fn plane(&self, id: u32, k: usize) -> Plane {
+        self.planes[id as usize * self.linear.len() + k]
+    }
+}
+
+/// Rasterisation settings.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    pub path: Path,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            path: Path::from_env(),
+        }
+    }
+}
+
+/// Converts a colour channel to 8 bits: round half to even of clamp(c)·255.
+#[inline]
+pub fn unorm8(c: f32) -> u8 {
+    (c.clamp(0.0, 1.0) * 255.0).round_ties_even() as u8
+}
+
+/// Sets up one triangle in window space (rules 2–5); None if it has zero
+/// snapped area or covers no pixel centre's bounding box.
+fn setup_one(
+    v: [&WinVertex; 3],
+    attrs: [&[f32]; 3],
+    linear: &[bool],
+    flat: u32,
+    vp: &Viewport,
+    planes: &mut Vec<Plane>,
+) -> Option<Tri> {
+    let snapped = v.map(|w| [setup::snap(w.x), setup::snap(w.y)]);
+    let area = setup::area(&snapped);
+    if area == 0 {
+        return None;
+    }
+    let order = if area < 0 { [0, 2, 1] } else { [0, 1, 2] };
+    let p = order.map(|i| snapped[i]);
+    let w = order.map(|i| *v[i]);
+    let a = order.map(|i| attrs[i]);
+    let min_x = p.iter().map(|q| q[0]).min().expect("3");
+    let max_x = p.iter().map(|q| q[0]).max().expect("3");
+    let min_y = p.iter().map(|q| q[1]).min().expect("3");
+    let max_y = p.iter().map(|q| q[1]).max().expect("3");
+    // Samples sit at multiples of 256; keep those within the box and target.
+    let x0 = (min_x + 255).div_euclid(256).max(0);
+    let y0 = (min_y + 255).div_euclid(256).max(0);
+    let x1 = max_x.div_euclid(256).min(vp.width as i64 - 1);
+    let y1 = max_y.div_euclid(256).min(vp.height as i64 - 1);
+    if x0 > x1 || y0 > y1 {
+        return None;
+    }
+    let ps = PlaneSetup::new(&w);
+    for (k, &lin) in linear.iter().enumerate() {
+        let vals = if lin {
+            [a[0][k], a[1][k], a[2][k]]
+        } else {
+            [a[0][k] * w[0].oow, a[1][k] * w[1].oow, a[2][k] * w[2].oow]
+        };
+        planes.push(ps.plane(vals));
+    }
+    Some(Tri {
+        edges: [
+            Edge::new(p[0], p[1]),
+            Edge::new(p[1], p[2]),
+            Edge::new(p[2], p[0]),
+        ],
+        bbox: [x0 as i32, y0 as i32, x1 as i32, y1 as i32],
+        z: ps.plane([w[0].z, w[1].z, w[2].z]),
+        oow: ps.plane([w[0].oow, w[1].oow, w[2].oow]),
+        flat,
+    })
+}
+
+/// Per-chunk setup output, merged in order afterwards.
+#[derive(Default)]
+struct Chunk {
+    tris: Vec<Tri>,
+    planes: Vec<Plane>,
+    rejected: usize,
+    clipped: usize,
+}
+
+/// Rasterises `mesh` into a `width`×`height` target.
+///
+/// # Panics
+/// If `mesh` is inconsistent (index out of range, attribute count over
+/// [`MAX_VARYINGS`], lengths that disagree): those are programming errors.
+pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster {
+    let n = mesh.linear.len();
+    assert!(n <= MAX_VARYINGS, "too many varyings");
+    assert_eq!(mesh.attrs.len(), mesh.clip.len() * n, "attribute count");
+    assert_eq!(mesh.flat.len(), mesh.triangles.len(), "flat count");
+    let vp = Viewport::new(width, height);
+    let finite: Vec<bool> = mesh
+        .clip
+        .iter()
+        .map(|c| c.iter().all(|v| v.is_finite()))
+        .collect();
+    let masks: Vec<u32> = mesh.clip.iter().map(|&c| clip::outcode(c)).collect();
+    let wins: Vec<WinVertex> = mesh.clip.iter().map(|&c| vp.map(c)).collect();
+    let attrs_of = |i: u32| &mesh.attrs[i as usize * n..i as usize * n + n];
+
+    let chunks: Vec<Chunk> = mesh
+        .triangles
+        .par_chunks(2048)
+        .zip(mesh.flat.par_chunks(2048))
+        .map(|(tris, flats)| {
+            let mut c = Chunk::default();
+            let mut fan = Vec::new();
+            for (t, &flat) in tris.iter().zip(flats) {
+                if !t.iter().all(|&i| finite[i as usize]) {
+                    continue;
+                }
+                let m = t.map(|i| masks[i as usize]);
+                if m[0] & m[1] & m[2] != 0 {
+                    c.rejected += 1;
+                    continue;
+                }
+                let or = m[0] | m[1] | m[2];
+                if or == 0 {
+                    let v = t.map(|i| &wins[i as usize]);
+                    let a = t.map(attrs_of);
+                    if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
+                        c.tris.push(s);
+                    }
+                    continue;
+                }
+                c.clipped += 1;
+                let cv = t.map(|i| {
+                    let mut a = [0.0; MAX_VARYINGS];
+                    a[..n].copy_from_slice(attrs_of(i));
+                    ClipVertex {
+                        clip: mesh.clip[i as usize],
+                        win: wins[i as usize],
+                        attrs: a,
+                    }
+                });
+                fan.clear();
+                clip::clip_triangle([&cv[0], &cv[1], &cv[2]], or, n, mesh.linear, &vp, &mut fan);
+                for f in &fan {
+                    let v = [&f[0].win, &f[1].win, &f[2].win];
+                    let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
+                    if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
+                        c.tris.push(s);
+                    }
+                }
+            }
+            c
+        })
+        .collect();
+
+    let mut stats = RasterStats {
+        input_triangles: mesh.triangles.len(),
+        non_finite_vertices: finite.iter().filter(|f| !**f).count(),
+        ..Default::default()
+    };
+    let mut tris = Vec::with_capacity(chunks.iter().map(|c| c.tris.len()).sum());
+    let mut planes = Vec::with_capacity(tris.capacity() * n);
+    for c in chunks {
+        stats.rejected += c.rejected;
+        stats.clipped += c.clipped;
+        tris.extend(c.tris);
+        planes.extend(c.planes);
+    }
+    stats.setup = tris.len();
+
+    let bins = bin::bin(&tris, width, height);
+    let (tiles_x, _) = bin::grid(width, height);
+    let avx2 = simd::has_avx2_fma();
+    let tiles: Vec<tile::TileBuf> = bins
+        .par_iter()
+        .enumerate()
+        .map(|(i, ids)| {
+            let tx0 = (i as u32 % tiles_x * bin::TILE) as i64;
+            let ty0 = (i as u32 / tiles_x * bin::TILE) as i64;
+            let mut buf = tile::TileBuf::new();
+            for &id in ids {
+                let t = &tris[id as usize];
+                match opts.path {
+                    Path::Scalar => tile::draw(t, id, tx0, ty0, &mut buf),
+                    Path::Simd => simd::draw(t, id, tx0, ty0, &mut buf, avx2),
+                }
+            }
+            buf
+        })
+        .collect();
+
+    let len = width as usize * height as usize;
+    let mut depth = vec![1.0f32; len];
+    let mut prim = vec![NONE; len];
+    for (i, buf) in tiles.iter().enumerate() {
+        let tx0 = (i as u32 % tiles_x * bin::TILE) as usize;
+        let ty0 = (i as u32 / tiles_x * bin::TILE) as usize;
+        let w = (width as usize - tx0).min(bin::TILE as usize);
+        let h = (height as usize - ty0).min(bin::TILE as usize);
+        for r in 0..h {
+            let dst = (ty0 + r) * width as usize + tx0;
+            let src = r * tile::STRIDE;
+            depth[dst..dst + w].copy_from_slice(&buf.depth[src..src + w]);
+            prim[dst..dst + w].copy_from_slice(&buf.prim[src..src + w]);
+        }
+    }
+    stats.covered_pixels = prim.iter().filter(|&&p| p != NONE).count();
+    Raster {
+        width,
+        height,
+        depth,
+        prim,
+        tris,
+        planes,
+        linear: mesh.linear.to_vec(),
+        stats,
+    }
+}
