@@ -10,19 +10,7 @@ use crate::world::WorldMap;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect as SkRect, Stroke, Transform};
 
 /// Colour for level l (cycled), also used by the `level-tint` effect.
-pub fn level_colour(l: usize) -> [u8; 3] {
-    const C: [[u8; 3]; 8] = [
-        [230, 25, 75],
-        [60, 180, 75],
-        [255, 225, 25],
-        [0, 130, 200],
-        [245, 130, 48],
-        [145, 30, 180],
-        [70, 240, 240],
-        [240, 50, 230],
-    ];
-    C[l % C.len()]
-}
+pub use crate::shade::level_tint::level_colour;
 
 /// Draws the diagram at `size`×`size` pixels and returns PNG bytes.
 pub fn draw(cm: &Clipmap, camera: Option<(&Camera, &WorldMap)>, size: u32) -> Result<Vec<u8>> {

@@ -16,10 +16,16 @@ pub mod camera;
 pub mod clipmap;
 pub mod diagram;
 pub mod error;
+pub mod frame;
 pub mod heightmap;
+pub mod lod;
 pub mod pyramid;
 pub mod raster;
+pub mod render;
 pub mod scene;
+pub mod shade;
+pub mod stats;
+pub mod vertex;
 pub mod world;
 
 pub use error::{Error, Result};

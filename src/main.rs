@@ -5,7 +5,8 @@ use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use terraclip::heightmap::Heightmap;
-use terraclip::scene::Scene;
+use terraclip::render::{self, RenderOptions};
+use terraclip::scene::{Overrides, Scene};
 
 #[derive(Parser)]
 #[command(
@@ -18,8 +19,66 @@ struct Cli {
     cmd: Option<Cmd>,
 }
 
+/// Scene values the command line can replace.
+#[derive(clap::Args, Debug, Default)]
+struct SceneArgs {
+    /// Heightmap file instead of the scene's terrain.
+    #[arg(long)]
+    heightmap: Option<PathBuf>,
+    /// Camera position X,Y,Z (metres).
+    #[arg(long, value_parser = Overrides::parse_xyz, allow_hyphen_values = true)]
+    camera: Option<[f64; 3]>,
+    /// Point to look at X,Y,Z (metres).
+    #[arg(long, value_parser = Overrides::parse_xyz, allow_hyphen_values = true)]
+    look_at: Option<[f64; 3]>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    fov: Option<f64>,
+    /// Image size WIDTHxHEIGHT.
+    #[arg(long, value_parser = Overrides::parse_size)]
+    size: Option<[u32; 2]>,
+    /// LOD scheme (clipmap, brute-force).
+    #[arg(long)]
+    lod: Option<String>,
+    /// Comma-separated effects (empty for none).
+    #[arg(long)]
+    effects: Option<String>,
+}
+
+impl SceneArgs {
+    fn overrides(&self) -> Overrides {
+        Overrides {
+            heightmap: self.heightmap.clone(),
+            camera: self.camera,
+            look_at: self.look_at,
+            fov: self.fov,
+            size: self.size,
+            lod: self.lod.clone(),
+            effects: self.effects.as_ref().map(|e| {
+                e.split(',')
+                    .map(|s| s.trim().to_string())
+                    .filter(|s| !s.is_empty())
+                    .collect()
+            }),
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Cmd {
+    /// Render a scene (the embedded default scene if none is given).
+    Render {
+        scene: Option<PathBuf>,
+        #[arg(short, long, default_value = "terraclip.png")]
+        out: PathBuf,
+        /// Back end: cpu (the reference) or gpu.
+        #[arg(long, default_value = "cpu")]
+        backend: String,
+        #[command(flatten)]
+        args: SceneArgs,
+        #[arg(long)]
+        json: bool,
+    },
     /// Print a heightmap's size, height range, no-data count and format.
     Info {
         heightmap: PathBuf,
@@ -48,8 +107,59 @@ fn load_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
     }
 }
 
+/// Renders `scene` to `out` and prints its statistics.
+fn render_cmd(
+    scene: &Option<PathBuf>,
+    out: &std::path::Path,
+    backend: &str,
+    args: &SceneArgs,
+    json: bool,
+) -> anyhow::Result<()> {
+    let mut s = load_scene(scene)?;
+    s.apply(&args.overrides())?;
+    match backend {
+        "cpu" => {}
+        "gpu" => anyhow::bail!("--backend gpu: the wgpu back end is not built yet; use cpu"),
+        other => anyhow::bail!("--backend must be cpu or gpu, got '{other}'"),
+    }
+    let (image, stats) = render::render(&s, &RenderOptions::default())?;
+    terraclip::error::write_atomic(out, &image.png()?)?;
+    let mut v = serde_json::to_value(&stats)?;
+    v["output"] = json!(out);
+    if json {
+        println!("{v}");
+    } else {
+        println!(
+            "wrote {} ({}×{}, {} {} triangles, {:.1} ms)",
+            out.display(),
+            stats.width,
+            stats.height,
+            stats.triangles,
+            stats.lod,
+            stats.ms_total
+        );
+        for p in &stats.passes {
+            println!("  {:<11} {:>9.2} ms", p.name, p.ms);
+        }
+        if stats.non_finite_vertices > 0 {
+            println!(
+                "  {} non-finite vertices dropped",
+                stats.non_finite_vertices
+            );
+        }
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.cmd {
+        Some(Cmd::Render {
+            scene,
+            out,
+            backend,
+            args,
+            json,
+        }) => render_cmd(&scene, &out, &backend, &args, json)?,
         Some(Cmd::Info { heightmap, json }) => {
             let h = Heightmap::load(&heightmap)?;
             let (min, max) = h.min_max();
@@ -102,20 +212,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
         }
         None => {
-            // The main job until rendering lands: the default scene's clipmap.
-            let s = Scene::default_scene();
-            let (h, cm, _) = s.build_clipmap()?;
-            let out = PathBuf::from("terraclip-diagram.png");
-            let png = terraclip::diagram::draw(&cm, None, 800)?;
-            terraclip::error::write_atomic(&out, &png)?;
-            println!(
-                "default scene: {}×{} procedural terrain, {} levels of n = {}; wrote {}",
-                h.width(),
-                h.height(),
-                cm.levels().len(),
-                cm.n(),
-                out.display()
-            );
+            // The main job: render the embedded default scene.
+            render_cmd(
+                &None,
+                std::path::Path::new("terraclip.png"),
+                "cpu",
+                &SceneArgs::default(),
+                false,
+            )?;
         }
     }
     Ok(())

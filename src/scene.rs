@@ -8,6 +8,7 @@ use crate::error::{Error, Result};
 use crate::heightmap::procedural::Procedural;
 use crate::heightmap::Heightmap;
 use crate::pyramid::{Filter, Pyramid};
+use crate::shade::{Effects, ShadeParams};
 use crate::world::WorldMap;
 use glam::DVec3;
 use serde::Deserialize;
@@ -20,17 +21,31 @@ pub const DEFAULT_SCENE: &str = include_str!("default_scene.toml");
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
-/// Effects a scene may list.
-pub const EFFECTS: &[&str] = &[
-    "lambert",
-    "phong",
-    "fog",
-    "shadows",
-    "normal-map",
-    "level-tint",
-    "wireframe",
-    "morph",
-];
+pub use crate::shade::EFFECTS;
+
+/// The LOD schemes a scene can name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LodScheme {
+    Clipmap,
+    BruteForce,
+}
+
+impl LodScheme {
+    pub const NAMES: &'static [&'static str] = &["clipmap", "brute-force"];
+    pub fn parse(s: &str) -> Option<Self> {
+        match s {
+            "clipmap" => Some(LodScheme::Clipmap),
+            "brute-force" => Some(LodScheme::BruteForce),
+            _ => None,
+        }
+    }
+    pub fn name(&self) -> &'static str {
+        match self {
+            LodScheme::Clipmap => "clipmap",
+            LodScheme::BruteForce => "brute-force",
+        }
+    }
+}
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(untagged)]
@@ -92,7 +107,11 @@ fn default_n() -> i64 {
 pub struct CameraSpec {
     /// World position (metres): x east, y north, z up.
     pub position: [f64; 3],
-    pub look_at: [f64; 3],
+    /// Either a point to look at, or a heading (`yaw`, degrees clockwise
+    /// from north) and `pitch` (degrees above the horizon).
+    pub look_at: Option<[f64; 3]>,
+    pub yaw: Option<f64>,
+    pub pitch: Option<f64>,
     #[serde(default = "default_fov")]
     pub fov: f64,
     #[serde(default = "default_near")]
@@ -136,6 +155,8 @@ pub struct Scene {
     pub image: ImageSpec,
     #[serde(default)]
     pub effects: Vec<String>,
+    #[serde(default)]
+    pub shading: ShadeParams,
     /// Folder that relative paths are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -196,20 +217,27 @@ impl Scene {
             }
         }
         Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
-        if self.lod.scheme != "clipmap" {
-            return Err(self.bad(
-                "lod.scheme",
-                format!("unknown scheme '{}' (available: clipmap)", self.lod.scheme),
-            ));
-        }
+        self.lod_scheme()?;
         crate::clipmap::region::check_n(self.lod.n).map_err(|r| self.bad("lod.n", r))?;
         let c = &self.camera;
-        let finite = c.position.iter().chain(&c.look_at).all(|v| v.is_finite());
-        if !finite {
-            return Err(self.bad("camera", "position and look_at must be finite"));
+        match (c.look_at, c.yaw, c.pitch) {
+            (Some(t), None, None) => {
+                if !t.iter().all(|v| v.is_finite()) {
+                    return Err(self.bad("camera.look_at", "must be finite"));
+                }
+                if c.position == t {
+                    return Err(self.bad("camera.look_at", "must differ from position"));
+                }
+            }
+            (None, Some(y), Some(p)) => {
+                if !(y.is_finite() && (-90.0..=90.0).contains(&p)) {
+                    return Err(self.bad("camera", "need a finite yaw and -90 <= pitch <= 90"));
+                }
+            }
+            _ => return Err(self.bad("camera", "give either 'look_at' or both 'yaw' and 'pitch'")),
         }
-        if c.position == c.look_at {
-            return Err(self.bad("camera.look_at", "must differ from position"));
+        if !c.position.iter().all(|v| v.is_finite()) {
+            return Err(self.bad("camera.position", "must be finite"));
         }
         if !(c.fov > 0.0 && c.fov < 180.0) {
             return Err(self.bad("camera.fov", format!("must be in (0, 180), got {}", c.fov)));
@@ -227,14 +255,10 @@ impl Scene {
                 ),
             ));
         }
-        for e in &self.effects {
-            if !EFFECTS.contains(&e.as_str()) {
-                return Err(self.bad(
-                    "effects",
-                    format!("unknown effect '{e}' (known: {})", EFFECTS.join(", ")),
-                ));
-            }
-        }
+        self.effects()?;
+        self.shading
+            .validate()
+            .map_err(|(field, reason)| self.bad(field, reason))?;
         Ok(())
     }
 
@@ -257,10 +281,45 @@ impl Scene {
         WorldMap::new(h.cell_size, self.terrain.vertical_scale)
     }
 
+    /// The listed effects.
+    pub fn effects(&self) -> Result<Effects> {
+        Effects::parse(&self.effects).map_err(|r| self.bad("effects", r))
+    }
+
+    pub fn lod_scheme(&self) -> Result<LodScheme> {
+        LodScheme::parse(&self.lod.scheme).ok_or_else(|| {
+            self.bad(
+                "lod.scheme",
+                format!(
+                    "unknown scheme '{}' (available: {})",
+                    self.lod.scheme,
+                    LodScheme::NAMES.join(", ")
+                ),
+            )
+        })
+    }
+
+    pub fn filter(&self) -> Result<Filter> {
+        Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))
+    }
+
+    /// The point the camera looks at (from look_at, or yaw and pitch).
+    pub fn target(&self) -> DVec3 {
+        let eye = DVec3::from_array(self.camera.position);
+        match (self.camera.look_at, self.camera.yaw, self.camera.pitch) {
+            (Some(t), _, _) => DVec3::from_array(t),
+            (_, Some(y), Some(p)) => {
+                let (y, p) = (y.to_radians(), p.to_radians());
+                eye + DVec3::new(p.cos() * y.sin(), p.cos() * y.cos(), p.sin())
+            }
+            _ => eye - DVec3::Z,
+        }
+    }
+
     pub fn camera(&self) -> Camera {
         Camera {
             eye: DVec3::from_array(self.camera.position),
-            target: DVec3::from_array(self.camera.look_at),
+            target: self.target(),
             fov_y_deg: self.camera.fov,
             near: self.camera.near,
             far: self.camera.far,
@@ -278,27 +337,105 @@ impl Scene {
             levels: self.lod.levels,
             layout: self.lod.layout,
             transition: self.lod.transition,
-            morph: self.effects.is_empty() || self.has_effect("morph"),
+            morph: self.has_effect("morph"),
             texel_budget: self.lod.texel_budget,
         }
+    }
+
+    /// Levels the clipmap will have on heightmap `h` (pyramid levels to
+    /// build).
+    pub fn clipmap_levels(&self, h: &Heightmap) -> usize {
+        let max = crate::clipmap::region::max_levels(h.width(), h.height(), self.lod.n);
+        self.lod.levels.unwrap_or(max).max(1)
+    }
+
+    /// A clipmap over `pyramid`, with errors naming this scene.
+    pub fn new_clipmap(&self, pyramid: Arc<Pyramid>, cfg: ClipmapConfig) -> Result<Clipmap> {
+        Clipmap::new(pyramid, cfg).map_err(|e| match e {
+            Error::BadValue { field, reason } => self.bad(&field, reason),
+            other => other,
+        })
     }
 
     /// Heightmap → pyramid → clipmap, updated for the scene's camera.
     pub fn build_clipmap(&self) -> Result<(Heightmap, Clipmap, WorldMap)> {
         let h = self.heightmap()?;
         let world = self.world(&h);
-        let cfg = self.clipmap_config();
-        let max = crate::clipmap::region::max_levels(h.width(), h.height(), cfg.n);
-        let count = cfg.levels.unwrap_or(max);
-        let filter =
-            Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
-        let pyramid = Arc::new(Pyramid::build(&h, filter, count.max(1)));
-        let mut cm = Clipmap::new(pyramid, cfg).map_err(|e| match e {
-            Error::BadValue { field, reason } => self.bad(&field, reason),
-            other => other,
-        })?;
+        let pyramid = Arc::new(Pyramid::build(&h, self.filter()?, self.clipmap_levels(&h)));
+        let mut cm = self.new_clipmap(pyramid, self.clipmap_config())?;
         cm.update(world.to_grid(DVec3::from_array(self.camera.position)));
         Ok((h, cm, world))
+    }
+}
+
+/// Command-line replacements for scene values (`render` and friends).
+#[derive(Clone, Debug, Default)]
+pub struct Overrides {
+    pub heightmap: Option<PathBuf>,
+    pub camera: Option<[f64; 3]>,
+    pub look_at: Option<[f64; 3]>,
+    pub fov: Option<f64>,
+    pub size: Option<[u32; 2]>,
+    pub lod: Option<String>,
+    pub effects: Option<Vec<String>>,
+}
+
+impl Overrides {
+    /// Parses "X,Y,Z".
+    pub fn parse_xyz(s: &str) -> std::result::Result<[f64; 3], String> {
+        let v: Vec<f64> = s
+            .split(',')
+            .map(|p| p.trim().parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|e| format!("'{s}': {e}"))?;
+        match v[..] {
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+            _ => Err(format!("'{s}': need three finite numbers X,Y,Z")),
+        }
+    }
+    /// Parses "WxH".
+    pub fn parse_size(s: &str) -> std::result::Result<[u32; 2], String> {
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| format!("'{s}': need WIDTHxHEIGHT"))?;
+        let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{s}': {e}"));
+        Ok([p(w)?, p(h)?])
+    }
+}
+
+impl Scene {
+    /// Applies command-line overrides and validates the result again.
+    pub fn apply(&mut self, o: &Overrides) -> Result<()> {
+        if let Some(h) = &o.heightmap {
+            let abs = std::env::current_dir()
+                .map(|d| d.join(h))
+                .unwrap_or_else(|_| h.clone());
+            self.terrain.file = Some(abs);
+            self.terrain.procedural = None;
+            self.terrain.cell_size = None;
+        }
+        if let Some(p) = o.camera {
+            self.camera.position = p;
+        }
+        if let Some(t) = o.look_at {
+            self.camera.look_at = Some(t);
+            self.camera.yaw = None;
+            self.camera.pitch = None;
+        }
+        if let Some(f) = o.fov {
+            self.camera.fov = f;
+        }
+        if let Some([w, h]) = o.size {
+            self.image.width = w;
+            self.image.height = h;
+        }
+        if let Some(l) = &o.lod {
+            self.lod.scheme = l.clone();
+        }
+        if let Some(e) = &o.effects {
+            self.effects = e.clone();
+        }
+        self.validate()
     }
 }
 

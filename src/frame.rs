@@ -1,0 +1,195 @@
+//! The frame: everything a back end needs to draw one view, and nothing it
+//! would have to decide itself. The LOD scheme's triangles, the vertex
+//! uniforms, the per-vertex varyings the listed effects need, and the
+//! effects' precomputed inputs. Both back ends consume the same `Frame`.
+
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::lod::LodMesh;
+use crate::pyramid::{Filter, Pyramid};
+use crate::shade::normal_map::{NormalMap, Sources};
+use crate::shade::shadows::Lightmap;
+use crate::shade::{self, fog, normals, Effects, Layout, Resources, ShadeParams};
+use crate::stats::Passes;
+use crate::vertex::VertexUniforms;
+use crate::world::WorldMap;
+use rayon::prelude::*;
+
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub background: [f32; 3],
+    /// Name of the LOD scheme that made the mesh.
+    pub lod: String,
+    pub uniforms: VertexUniforms,
+    pub mesh: LodMesh,
+    pub effects: Effects,
+    pub params: ShadeParams,
+    pub layout: Layout,
+    /// Camera-relative position per vertex (the vertex stage's output).
+    pub positions: Vec<[f32; 3]>,
+    /// `layout.len()` varyings per vertex.
+    pub attrs: Vec<f32>,
+    pub resources: Resources,
+}
+
+/// What a frame is made from.
+pub struct FrameInput<'a> {
+    pub pyramid: &'a Pyramid,
+    pub filter: Filter,
+    pub world: &'a WorldMap,
+    pub camera: &'a Camera,
+    pub mesh: LodMesh,
+    pub lod: &'a str,
+    pub size: [u32; 2],
+    pub background: [f32; 3],
+    pub effects: Effects,
+    pub params: &'a ShadeParams,
+}
+
+impl Frame {
+    /// Runs the vertex stage and the listed effects' precomputations, each
+    /// as a timed pass.
+    pub fn build(input: FrameInput, passes: &mut Passes) -> Result<Frame> {
+        let FrameInput {
+            pyramid,
+            filter,
+            world,
+            camera,
+            mesh,
+            lod,
+            size,
+            background,
+            effects,
+            params,
+        } = input;
+        let uniforms = VertexUniforms::new(camera, world);
+        let layout = Layout::new(&effects);
+        let k = layout.len();
+        let base = &pyramid.levels[0];
+        let vs = world.vertical_scale as f32;
+        let (lo, hi) = (base.min * vs, base.max * vs);
+        let span = if hi > lo { hi - lo } else { 1.0 };
+
+        let (positions, mut attrs) = passes.time("vertex", || {
+            let positions: Vec<[f32; 3]> = mesh
+                .vertices
+                .par_iter()
+                .map(|v| uniforms.position(v))
+                .collect();
+            let mut attrs = vec![0.0f32; positions.len() * k];
+            if k > 0 {
+                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
+                    let v = &mesh.vertices[i];
+                    let p = positions[i];
+                    let l = mesh.levels[i / 3] as usize;
+                    if let Some(o) = layout.albedo {
+                        a[o..o + 3].copy_from_slice(&shade::height_albedo((p[2] - lo) / span));
+                    }
+                    if let (Some(o), Some(info)) = (layout.uv, mesh.level_info[l]) {
+                        let g = 1i64 << l;
+                        a[o] = (v.col.div_euclid(g) - info.origin[0]) as f32;
+                        a[o + 1] = (v.row.div_euclid(g) - info.origin[1]) as f32;
+                    }
+                    if let Some(o) = layout.alpha {
+                        a[o] = v.alpha;
+                    }
+                    let e = uniforms.eye;
+                    let view = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
+                    if let Some(o) = layout.fog {
+                        let d = view.iter().map(|c| (*c as f64).powi(2)).sum::<f64>().sqrt();
+                        a[o] = fog::factor(params.fog_density, d);
+                    }
+                    if let Some(o) = layout.view {
+                        a[o..o + 3].copy_from_slice(&view);
+                    }
+                    if let Some(o) = layout.bary {
+                        a[o..o + 3].fill(0.0);
+                        a[o + i % 3] = 1.0;
+                    }
+                });
+            }
+            (positions, attrs)
+        });
+
+        if let Some(o) = layout.normal {
+            passes.time("normals", || {
+                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
+                    let v = &mesh.vertices[i];
+                    let l = mesh.levels[i / 3] as usize;
+                    let g = 1i64 << l;
+                    let morph = mesh.level_info[l].is_some_and(|m| m.morph);
+                    let alpha = if morph { v.alpha } else { 0.0 };
+                    let n = normals::vertex_normal(
+                        &pyramid.levels,
+                        l,
+                        v.col.div_euclid(g),
+                        v.row.div_euclid(g),
+                        alpha,
+                        world,
+                    );
+                    a[o..o + 3].copy_from_slice(&n);
+                });
+            });
+        }
+
+        let mut resources = Resources {
+            levels: mesh.level_info.clone(),
+            ..Default::default()
+        };
+        if effects.normal_map {
+            resources.normal_maps = passes.time("normal-map", || {
+                let drawn = &mesh.level_info;
+                let src = Sources::new(&pyramid.levels, drawn.first().is_some_and(|d| d.is_some()));
+                drawn
+                    .iter()
+                    .map(|d| {
+                        d.map(|info| {
+                            NormalMap::build(
+                                &pyramid.levels,
+                                &src,
+                                info.level,
+                                info.origin,
+                                info.size,
+                                world,
+                            )
+                        })
+                    })
+                    .collect()
+            });
+        }
+        if effects.shadows {
+            let levels = (mesh.level_info.len() + 1).min(pyramid.levels.len().max(1) + 1);
+            resources.lightmap = Some(passes.time("lightmap", || {
+                Lightmap::build(
+                    base,
+                    world,
+                    params.sun_direction(),
+                    params.shadow_epsilon,
+                    params.lightmap_scale,
+                    filter,
+                    levels,
+                )
+            })?);
+        }
+        Ok(Frame {
+            width: size[0],
+            height: size[1],
+            background,
+            lod: lod.to_string(),
+            uniforms,
+            mesh,
+            effects,
+            params: params.clone(),
+            layout,
+            positions,
+            attrs,
+            resources,
+        })
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.mesh.triangle_count()
+    }
+}
