@@ -17,6 +17,7 @@ pub mod clipmap;
 pub mod diagram;
 pub mod error;
 pub mod frame;
+pub mod golden;
 pub mod heightmap;
 pub mod lod;
 pub mod pyramid;

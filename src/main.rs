@@ -66,6 +66,19 @@ impl SceneArgs {
 
 #[derive(Subcommand)]
 enum Cmd {
+    /// Check the golden images (0 pixels may differ); --bless rewrites them.
+    Golden {
+        /// Folder of <name>.toml scenes and <name>.png references.
+        #[arg(default_value = "golden")]
+        dir: PathBuf,
+        #[arg(long)]
+        bless: bool,
+        /// Where to write -actual and -diff images of failing scenes.
+        #[arg(long, default_value = "target/golden-diff")]
+        diff_dir: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Render a scene (the embedded default scene if none is given).
     Render {
         scene: Option<PathBuf>,
@@ -153,6 +166,33 @@ fn render_cmd(
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.cmd {
+        Some(Cmd::Golden {
+            dir,
+            bless,
+            diff_dir,
+            json,
+        }) => {
+            let results = terraclip::golden::check(&dir, bless, Some(&diff_dir))?;
+            if json {
+                println!("{}", json!({ "scenes": results }));
+            } else {
+                for r in &results {
+                    let state = match (r.pass, r.blessed) {
+                        (_, true) => "blessed",
+                        (true, _) => "ok",
+                        _ => "FAIL",
+                    };
+                    println!("{:<8} {:<22} {} px differ", state, r.scene, r.px_differ);
+                }
+            }
+            let failed = results.iter().filter(|r| !r.pass).count();
+            if failed > 0 {
+                anyhow::bail!(
+                    "{failed} golden scene(s) differ; images in {}",
+                    diff_dir.display()
+                );
+            }
+        }
         Some(Cmd::Render {
             scene,
             out,

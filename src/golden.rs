@@ -1,0 +1,115 @@
+//! Golden images: every `<name>.toml` in a folder is rendered and compared
+//! with `<name>.png`, exactly (0 pixels may differ). `bless` rewrites the
+//! references, each through a temporary file and a rename. On a mismatch,
+//! the actual image and a difference image can be written for inspection.
+
+use crate::error::{write_atomic, Error, Result};
+use crate::render::{render, Image, RenderOptions};
+use crate::scene::Scene;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// One scene's outcome.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct GoldenResult {
+    pub scene: String,
+    /// Pixels whose RGBA differ (every pixel when the reference is missing).
+    pub px_differ: usize,
+    pub pass: bool,
+    /// True when `bless` wrote a new reference.
+    pub blessed: bool,
+}
+
+/// The scene files of a golden folder, sorted.
+pub fn scenes(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        return Err(Error::file(dir, "no golden scenes (*.toml) found"));
+    }
+    Ok(v)
+}
+
+/// Decodes a reference PNG to RGBA8.
+pub fn load_png(path: &Path) -> Result<(u32, u32, Vec<u8>)> {
+    let img = image::open(path).map_err(|e| Error::file(path, format!("unreadable PNG: {e}")))?;
+    let rgba = img.to_rgba8();
+    Ok((rgba.width(), rgba.height(), rgba.into_raw()))
+}
+
+/// Pixels that differ, and a difference image (red where they do).
+pub fn diff(a: &Image, expected: &[u8]) -> (usize, Image) {
+    let mut out = a.clone();
+    let mut n = 0;
+    for (i, (p, q)) in a.rgba.chunks(4).zip(expected.chunks(4)).enumerate() {
+        let differs = p != q;
+        n += usize::from(differs);
+        let px = &mut out.rgba[i * 4..i * 4 + 4];
+        if differs {
+            px.copy_from_slice(&[255, 0, 0, 255]);
+        } else {
+            // Dim the matching pixels so the differences stand out.
+            for c in &mut px[..3] {
+                *c /= 3;
+            }
+        }
+    }
+    (n, out)
+}
+
+/// Checks (or with `bless`, rewrites) one scene's reference.
+pub fn check_one(
+    scene_path: &Path,
+    bless: bool,
+    diff_dir: Option<&Path>,
+    opts: &RenderOptions,
+) -> Result<GoldenResult> {
+    let scene = Scene::load(scene_path)?;
+    let (img, _) = render(&scene, opts)?;
+    let png = scene_path.with_extension("png");
+    let name = scene_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let total = (img.width * img.height) as usize;
+    let px_differ = if png.exists() {
+        let (w, h, data) = load_png(&png)?;
+        if (w, h) != (img.width, img.height) {
+            total
+        } else {
+            let (n, d) = diff(&img, &data);
+            if n > 0 {
+                if let Some(dir) = diff_dir {
+                    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+                    write_atomic(&dir.join(format!("{name}-actual.png")), &img.png()?)?;
+                    write_atomic(&dir.join(format!("{name}-diff.png")), &d.png()?)?;
+                }
+            }
+            n
+        }
+    } else {
+        total
+    };
+    let blessed = bless && px_differ > 0;
+    if blessed {
+        write_atomic(&png, &img.png()?)?;
+    }
+    Ok(GoldenResult {
+        scene: name,
+        px_differ,
+        pass: px_differ == 0 || blessed,
+        blessed,
+    })
+}
+
+/// Checks every scene in `dir`.
+pub fn check(dir: &Path, bless: bool, diff_dir: Option<&Path>) -> Result<Vec<GoldenResult>> {
+    scenes(dir)?
+        .iter()
+        .map(|s| check_one(s, bless, diff_dir, &RenderOptions::default()))
+        .collect()
+}

@@ -1,0 +1,113 @@
+//! Golden images: exact (0 pixels may differ), for 1, 2 and 8 threads and
+//! for the scalar and 8-lane raster paths. On failure, the actual and
+//! difference images go to target/golden-diff.
+
+use std::path::Path;
+use terraclip::golden::{check_one, scenes};
+use terraclip::raster::Path as RasterPath;
+use terraclip::render::{render, RenderOptions};
+use terraclip::scene::Scene;
+
+#[test]
+fn every_golden_matches_for_any_thread_count_and_path() {
+    let diff_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/golden-diff");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
+    let all = scenes(&dir).unwrap();
+    assert!(all.len() >= 8, "at least 8 golden scenes");
+    let mut failures = vec![];
+    for (threads, path) in [
+        (1, RasterPath::Scalar),
+        (2, RasterPath::Simd),
+        (8, RasterPath::Scalar),
+        (8, RasterPath::Simd),
+    ] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for s in &all {
+            let r = pool
+                .install(|| check_one(s, false, Some(&diff_dir), &RenderOptions { path }))
+                .unwrap();
+            if !r.pass {
+                failures.push(format!(
+                    "{} ({threads} threads, {path:?}): {} px",
+                    r.scene, r.px_differ
+                ));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "goldens differ (images in {}):\n{}",
+        diff_dir.display(),
+        failures.join("\n")
+    );
+}
+
+fn golden_scene(name: &str) -> Scene {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("golden/{name}.toml"));
+    Scene::load(&p).unwrap()
+}
+
+#[test]
+fn without_shadows_no_lightmap_is_built_and_the_frame_costs_less() {
+    let with = golden_scene("shadows-low-sun");
+    let mut without = with.clone();
+    without.effects.retain(|e| e != "shadows");
+    let opts = RenderOptions::default();
+    // Best of three each, to keep a busy machine from deciding the result.
+    let best = |s: &Scene| {
+        (0..3)
+            .map(|_| render(s, &opts).unwrap().1)
+            .min_by(|a, b| a.ms_total.total_cmp(&b.ms_total))
+            .unwrap()
+    };
+    let (a, b) = (best(&with), best(&without));
+    let names = |s: &terraclip::render::RenderStats| {
+        s.passes.iter().map(|p| p.name.clone()).collect::<Vec<_>>()
+    };
+    assert!(
+        names(&a).contains(&"lightmap".to_string()),
+        "{:?}",
+        names(&a)
+    );
+    assert!(
+        a.lightmap_rays > 100_000,
+        "one ray per texel: {}",
+        a.lightmap_rays
+    );
+    assert!(
+        !names(&b).contains(&"lightmap".to_string()),
+        "{:?}",
+        names(&b)
+    );
+    assert_eq!(b.lightmap_rays, 0);
+    let lightmap_ms = a.passes.iter().find(|p| p.name == "lightmap").unwrap().ms;
+    println!(
+        "with shadows {:.1} ms (lightmap {:.1} ms), without {:.1} ms",
+        a.ms_total, lightmap_ms, b.ms_total
+    );
+    assert!(
+        b.ms_total < a.ms_total,
+        "without shadows {:.1} ms, with {:.1} ms",
+        b.ms_total,
+        a.ms_total
+    );
+}
+
+#[test]
+fn without_lighting_no_normals_are_computed() {
+    let mut s = golden_scene("jacksboro-oblique");
+    let (_, lit) = render(&s, &RenderOptions::default()).unwrap();
+    assert!(lit.passes.iter().any(|p| p.name == "normals"));
+    assert!(lit.normals_computed > 0);
+    s.effects = vec!["fog".into(), "morph".into()];
+    let (_, unlit) = render(&s, &RenderOptions::default()).unwrap();
+    assert!(unlit
+        .passes
+        .iter()
+        .all(|p| p.name != "normals" && p.name != "normal-map"));
+    assert_eq!(unlit.normals_computed, 0);
+    assert_eq!(unlit.lightmap_rays, 0);
+}
