@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use terraclip::heightmap::Heightmap;
 
-const JACKSBORO: &str = "../shared/data/dem/jacksboro_16.png";
+const JACKSBORO: &str = "tests/data/jacksboro_16.png";
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("terraclip-inputs-{}", std::process::id()));
@@ -38,7 +38,7 @@ fn fails_cleanly(args: &[&str], needle: &str, reason: &str) {
 #[test]
 fn info_reports_jacksboro() {
     if !Path::new(JACKSBORO).exists() {
-        panic!("{JACKSBORO} missing: tests run beside ../shared");
+        panic!("{JACKSBORO} missing from the checkout");
     }
     let (code, out, _) = cli(&["info", JACKSBORO, "--json"]);
     assert_eq!(code, 0);
