@@ -160,7 +160,8 @@ impl Frame {
             });
         }
         if effects.shadows {
-            let levels = (mesh.level_info.len() + 1).min(pyramid.levels.len().max(1) + 1);
+            // One more than drawn, so the top level can blend toward it.
+            let levels = mesh.level_info.len() + 1;
             resources.lightmap = Some(passes.time("lightmap", || {
                 Lightmap::build(
                     base,

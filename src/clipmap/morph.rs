@@ -65,12 +65,19 @@ pub fn blend(z: f32, zc: f32, alpha: f32) -> f32 {
 /// diagonal (the one every mesh here uses) at cell centres.
 #[inline]
 pub fn coarse_height(coarse: &Toroid<f32>, x: i64, y: i64) -> f32 {
+    coarse_sample(x, y, |a, b| coarse.get(a, b), |p, q| (p + q) * 0.5)
+}
+
+/// The main-diagonal convention for any coarse quantity (heights, slopes,
+/// upsampled maps): `get` reads coarse texel (x, y) and `mid` averages two.
+#[inline]
+pub fn coarse_sample<T>(x: i64, y: i64, get: impl Fn(i64, i64) -> T, mid: impl Fn(T, T) -> T) -> T {
     let (hx, hy) = (x.div_euclid(2), y.div_euclid(2));
     match (x.rem_euclid(2), y.rem_euclid(2)) {
-        (0, 0) => coarse.get(hx, hy),
-        (1, 0) => (coarse.get(hx, hy) + coarse.get(hx + 1, hy)) * 0.5,
-        (0, _) => (coarse.get(hx, hy) + coarse.get(hx, hy + 1)) * 0.5,
-        _ => (coarse.get(hx, hy) + coarse.get(hx + 1, hy + 1)) * 0.5,
+        (0, 0) => get(hx, hy),
+        (1, 0) => mid(get(hx, hy), get(hx + 1, hy)),
+        (0, _) => mid(get(hx, hy), get(hx, hy + 1)),
+        _ => mid(get(hx, hy), get(hx + 1, hy + 1)),
     }
 }
 

@@ -25,14 +25,12 @@ fn half_base(b: &PyramidLevel) -> PyramidLevel {
     let mut data = vec![0.0; w * h];
     data.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for (x, out) in row.iter_mut().enumerate() {
-            let (hx, hy) = ((x / 2) as i64, (y / 2) as i64);
-            let g = |a: i64, c: i64| b.get_clamped(a, c);
-            *out = match (x % 2, y % 2) {
-                (0, 0) => g(hx, hy),
-                (1, 0) => (g(hx, hy) + g(hx + 1, hy)) * 0.5,
-                (0, _) => (g(hx, hy) + g(hx, hy + 1)) * 0.5,
-                _ => (g(hx, hy) + g(hx + 1, hy + 1)) * 0.5,
-            };
+            *out = crate::clipmap::morph::coarse_sample(
+                x as i64,
+                y as i64,
+                |a, c| b.get_clamped(a, c),
+                |p, q| (p + q) * 0.5,
+            );
         }
     });
     PyramidLevel {

@@ -27,15 +27,9 @@ pub fn from_gradient(g: [f32; 2]) -> [f32; 3] {
 /// The coarser level's slope at fine texel (x, y), with the same averaging
 /// as the coarse height (`clipmap::morph::coarse_height`).
 pub fn coarse_gradient(c: &PyramidLevel, x: i64, y: i64, spacing: f64, w: &WorldMap) -> [f32; 2] {
-    let (hx, hy) = (x.div_euclid(2), y.div_euclid(2));
     let g = |a: i64, b: i64| gradient(c, a, b, spacing, w);
     let avg = |p: [f32; 2], q: [f32; 2]| [(p[0] + q[0]) * 0.5, (p[1] + q[1]) * 0.5];
-    match (x.rem_euclid(2), y.rem_euclid(2)) {
-        (0, 0) => g(hx, hy),
-        (1, 0) => avg(g(hx, hy), g(hx + 1, hy)),
-        (0, _) => avg(g(hx, hy), g(hx, hy + 1)),
-        _ => avg(g(hx, hy), g(hx + 1, hy + 1)),
-    }
+    crate::clipmap::morph::coarse_sample(x, y, g, avg)
 }
 
 /// The normal at level-`l` texel (x, y), morphed toward level l + 1 by α.
