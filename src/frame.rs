@@ -9,7 +9,7 @@ use crate::lod::LodMesh;
 use crate::pyramid::{Filter, Pyramid};
 use crate::shade::normal_map::{NormalMap, Sources};
 use crate::shade::shadows::Lightmap;
-use crate::shade::{self, fog, normals, Effects, Layout, Resources, ShadeParams};
+use crate::shade::{self, fog, normals, wireframe, Effects, Layout, Resources, ShadeParams};
 use crate::stats::Passes;
 use crate::vertex::VertexUniforms;
 use crate::world::WorldMap;
@@ -72,6 +72,7 @@ impl Frame {
         let (lo, hi) = (base.min * vs, base.max * vs);
         let span = if hi > lo { hi - lo } else { 1.0 };
 
+        let fog_rate = fog::rate(params.fog_density);
         let (positions, mut attrs) = passes.time("vertex", || {
             let positions: Vec<[f32; 3]> = mesh
                 .vertices
@@ -98,8 +99,8 @@ impl Frame {
                     let e = uniforms.eye;
                     let view = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
                     if let Some(o) = layout.fog {
-                        let d = view.iter().map(|c| (*c as f64).powi(2)).sum::<f64>().sqrt();
-                        a[o] = fog::factor(params.fog_density, d);
+                        let d = shade::vec3::dot(view, view).sqrt();
+                        a[o] = fog::factor(fog_rate, d);
                     }
                     if let Some(o) = layout.view {
                         a[o..o + 3].copy_from_slice(&view);
@@ -107,6 +108,16 @@ impl Frame {
                     if let Some(o) = layout.bary {
                         a[o..o + 3].fill(0.0);
                         a[o + i % 3] = 1.0;
+                    }
+                });
+            }
+            if let Some(o) = layout.edge {
+                let size = [size[0], size[1]];
+                attrs.par_chunks_mut(3 * k).enumerate().for_each(|(t, a)| {
+                    let c = [0, 1, 2].map(|j| uniforms.clip(positions[3 * t + j]));
+                    let th = wireframe::thresholds(c, size);
+                    for j in 0..3 {
+                        a[j * k + o..j * k + o + 3].copy_from_slice(&th);
                     }
                 });
             }

@@ -187,6 +187,8 @@ pub struct Layout {
     pub fog: Option<usize>,
     pub view: Option<usize>,
     pub bary: Option<usize>,
+    /// Per-triangle wireframe thresholds (constant over a triangle).
+    pub edge: Option<usize>,
     /// Per attribute: screen-linear (true) or perspective-correct.
     pub linear: Vec<bool>,
 }
@@ -218,6 +220,7 @@ impl Layout {
         }
         if e.wireframe {
             l.bary = add(3, true, &mut l);
+            l.edge = add(3, true, &mut l);
         }
         l
     }
@@ -322,8 +325,8 @@ fn shade_pixel(s: &ShadeInputs, r: &Raster, id: u32, px: u32, py: u32, v: &mut [
         c = fog::apply(c, s.params.fog_colour.unwrap_or(s.background), v[k]);
     }
     if let Some(k) = lay.bary {
-        let planes = [0, 1, 2].map(|i| r.plane(id, k + i));
-        if wireframe::on_edge([v[k], v[k + 1], v[k + 2]], planes) {
+        let t = at3(lay.edge).expect("edge thresholds");
+        if wireframe::on_edge([v[k], v[k + 1], v[k + 2]], t) {
             c = wireframe::apply(c, s.params.wire_colour);
         }
     }
@@ -364,7 +367,7 @@ mod tests {
         let nm = Layout::new(&Effects::parse(&["lambert", "normal-map"]).unwrap());
         assert!(nm.normal.is_none() && nm.uv.is_some() && nm.alpha.is_some());
         let wire = Layout::new(&Effects::parse(&["wireframe", "level-tint"]).unwrap());
-        assert_eq!(wire.linear, vec![true; 3]);
+        assert_eq!(wire.linear, vec![true; 6]);
     }
 
     #[test]
