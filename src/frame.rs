@@ -32,6 +32,8 @@ pub struct Frame {
     /// `layout.len()` varyings per vertex.
     pub attrs: Vec<f32>,
     pub resources: Resources,
+    /// Height-ramp low end and span (metres) of the albedo.
+    pub height_ramp: (f32, f32),
 }
 
 /// What a frame is made from.
@@ -198,6 +200,7 @@ impl Frame {
             positions,
             attrs,
             resources,
+            height_ramp: (lo, span),
         })
     }
 

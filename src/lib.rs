@@ -18,6 +18,8 @@ pub mod diagram;
 pub mod error;
 pub mod frame;
 pub mod golden;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod heightmap;
 pub mod lod;
 pub mod pyramid;

@@ -92,6 +92,44 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Render scenes on both back ends and compare them pixel for pixel
+    /// (exact on the pinned lavapipe, a stated tolerance elsewhere).
+    #[cfg(feature = "gpu")]
+    CheckGpu {
+        /// Scene files; the golden scenes if none.
+        scenes: Vec<PathBuf>,
+        /// wgpu backend: vulkan or gl.
+        #[arg(long, default_value = "vulkan")]
+        api: String,
+        /// Where the -cpu, -gpu and -diff PNGs go.
+        #[arg(long, default_value = "target/check-gpu")]
+        out: PathBuf,
+        /// Frames along a camera path (1 = the scene's view only).
+        #[arg(long, default_value_t = 1)]
+        frames: usize,
+        /// Camera step per frame along the path, metres.
+        #[arg(long, default_value_t = 37.0)]
+        step: f64,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Frames per second of the CPU rasteriser and the GPU on one scene.
+    #[cfg(feature = "gpu")]
+    Bench {
+        /// Scene file; the embedded default scene if omitted.
+        scene: Option<PathBuf>,
+        /// Frames per timed repeat.
+        #[arg(long, default_value_t = 10)]
+        frames: usize,
+        /// Repeats; the median is reported.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Image size WIDTHxHEIGHT.
+        #[arg(long, default_value = "1920x1080", value_parser = Overrides::parse_size)]
+        size: [u32; 2],
+        #[arg(long)]
+        json: bool,
+    },
     /// Print a heightmap's size, height range, no-data count and format.
     Info {
         heightmap: PathBuf,
@@ -130,12 +168,11 @@ fn render_cmd(
 ) -> anyhow::Result<()> {
     let mut s = load_scene(scene)?;
     s.apply(&args.overrides())?;
-    match backend {
-        "cpu" => {}
-        "gpu" => anyhow::bail!("--backend gpu: the wgpu back end is not built yet; use cpu"),
+    let (image, stats) = match backend {
+        "cpu" => render::render(&s, &RenderOptions::default())?,
+        "gpu" => gpu_render(&s)?,
         other => anyhow::bail!("--backend must be cpu or gpu, got '{other}'"),
-    }
-    let (image, stats) = render::render(&s, &RenderOptions::default())?;
+    };
     terraclip::error::write_atomic(out, &image.png()?)?;
     let mut v = serde_json::to_value(&stats)?;
     v["output"] = json!(out);
@@ -160,6 +197,121 @@ fn render_cmd(
                 stats.non_finite_vertices
             );
         }
+    }
+    Ok(())
+}
+
+#[cfg(feature = "gpu")]
+fn gpu_render(s: &Scene) -> anyhow::Result<(render::Image, render::RenderStats)> {
+    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
+    Ok(parity::render(&mut r, s)?)
+}
+
+#[cfg(not(feature = "gpu"))]
+fn gpu_render(_: &Scene) -> anyhow::Result<(render::Image, render::RenderStats)> {
+    anyhow::bail!("--backend gpu: this build has no wgpu back end (cargo feature 'gpu')")
+}
+
+/// Scene paths given on the command line, or the goldens' scenes.
+#[cfg(feature = "gpu")]
+fn scene_list(scenes: &[PathBuf]) -> anyhow::Result<Vec<(String, Scene)>> {
+    let paths = if scenes.is_empty() {
+        terraclip::golden::scenes(std::path::Path::new("golden"))?
+    } else {
+        scenes.to_vec()
+    };
+    paths
+        .iter()
+        .map(|p| {
+            let name = p
+                .file_stem()
+                .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+            Ok((name, Scene::load(p)?))
+        })
+        .collect()
+}
+
+#[cfg(feature = "gpu")]
+fn check_gpu_cmd(
+    scenes: &[PathBuf],
+    api: &str,
+    out: &std::path::Path,
+    frames: usize,
+    step: f64,
+    json: bool,
+) -> anyhow::Result<()> {
+    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    let api = Api::parse(api)
+        .ok_or_else(|| anyhow::anyhow!("--api must be vulkan or gl, got '{api}'"))?;
+    let list = scene_list(scenes)?;
+    let gpu = Gpu::new(api)?;
+    let exact = gpu.exact_expected();
+    let (adapter, driver) = (gpu.adapter(), gpu.info.driver_info.clone());
+    let mut r = GpuRenderer::new(gpu);
+    let mut results = vec![];
+    for (name, scene) in &list {
+        let res = parity::check(&mut r, scene, name, frames, step, out, exact)?;
+        if !json {
+            println!(
+                "{:<6} {:<22} {:>3} frame(s)  colour {} px  depth {} px  max channel {}  max depth {} ulp",
+                if res.pass { "ok" } else { "FAIL" },
+                res.scene,
+                res.frames,
+                res.colour_px_differ,
+                res.depth_px_differ,
+                res.max_channel_diff,
+                res.max_depth_ulp
+            );
+        }
+        results.push(res);
+    }
+    let mode = if exact { "exact" } else { "tolerance" };
+    if json {
+        println!(
+            "{}",
+            json!({"adapter": adapter, "driver_info": driver, "exact_expected": exact,
+                   "mode": mode, "scenes": results})
+        );
+    } else {
+        println!(
+            "adapter {adapter}, driver {driver}: {mode} mode; images in {}",
+            out.display()
+        );
+    }
+    let failed = results.iter().filter(|r| !r.pass).count();
+    if failed > 0 {
+        anyhow::bail!("{failed} scene(s) differ between the CPU and GPU back ends ({mode} mode)");
+    }
+    Ok(())
+}
+
+#[cfg(feature = "gpu")]
+fn bench_cmd(
+    scene: &Option<PathBuf>,
+    frames: usize,
+    repeats: usize,
+    size: [u32; 2],
+    json: bool,
+) -> anyhow::Result<()> {
+    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    if frames == 0 || repeats == 0 {
+        anyhow::bail!("--frames and --repeats must be at least 1");
+    }
+    let mut s = load_scene(scene)?;
+    s.apply(&terraclip::scene::Overrides {
+        size: Some(size),
+        ..Default::default()
+    })?;
+    let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
+    let b = parity::bench(&mut r, &s, frames, repeats)?;
+    if json {
+        println!("{}", serde_json::to_value(&b)?);
+    } else {
+        println!(
+            "{}×{}, {} triangles, median of {} × {} frames: CPU {:.2} fps, GPU ({}) {:.2} fps, ratio {:.2}",
+            b.size[0], b.size[1], b.triangles, b.repeats, b.frames, b.cpu_fps, b.adapter, b.gpu_fps, b.ratio
+        );
     }
     Ok(())
 }
@@ -200,6 +352,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             args,
             json,
         }) => render_cmd(&scene, &out, &backend, &args, json)?,
+        #[cfg(feature = "gpu")]
+        Some(Cmd::CheckGpu {
+            scenes,
+            api,
+            out,
+            frames,
+            step,
+            json,
+        }) => check_gpu_cmd(&scenes, &api, &out, frames, step, json)?,
+        #[cfg(feature = "gpu")]
+        Some(Cmd::Bench {
+            scene,
+            frames,
+            repeats,
+            size,
+            json,
+        }) => bench_cmd(&scene, frames, repeats, size, json)?,
         Some(Cmd::Info { heightmap, json }) => {
             let h = Heightmap::load(&heightmap)?;
             let (min, max) = h.min_max();

@@ -2,14 +2,19 @@
 //! shade, every step a timed pass, and only the passes the scene's effects
 //! need.
 
+use crate::camera::Camera;
+use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
 use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameInput};
-use crate::lod::{self, LodMesh};
+use crate::lod;
+use crate::pyramid::Filter;
 use crate::pyramid::Pyramid;
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
 use crate::scene::{LodScheme, Scene};
 use crate::shade::{self, ShadeInputs};
+use crate::shade::{Effects, ShadeParams};
 use crate::stats::{Pass, Passes};
+use crate::world::WorldMap;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
@@ -118,59 +123,118 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
     (image, r.stats)
 }
 
-/// Builds the scene's frame (everything before rasterisation).
-pub fn build_frame(scene: &Scene, passes: &mut Passes) -> Result<Frame> {
-    let h = passes.time("terrain", || scene.heightmap())?;
-    let world = scene.world(&h);
-    let camera = scene.camera();
-    let frustum = camera.frustum();
-    let filter = scene.filter()?;
-    let scheme = scene.lod_scheme()?;
-    let (pyramid, mesh): (Arc<Pyramid>, LodMesh) = match scheme {
-        LodScheme::Clipmap => {
-            let cfg = scene.clipmap_config();
-            let count = scene.clipmap_levels(&h);
-            let pyramid = Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, count)));
-            let mesh = passes.time("lod", || -> Result<LodMesh> {
-                let mut cm = scene.new_clipmap(pyramid.clone(), cfg)?;
-                cm.update(world.to_grid(camera.eye));
-                Ok(lod::clipmap_mesh(&cm, &frustum, &world))
-            })?;
-            (pyramid, mesh)
-        }
-        LodScheme::BruteForce => {
-            // Level 1 only feeds the lightmap's and normal map's blends.
-            let pyramid = Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, 1)));
-            let mesh = passes.time("lod", || {
-                lod::brute_force::mesh(&pyramid.levels[0], &frustum, &world)
-            });
-            (pyramid, mesh)
-        }
-    };
-    drop(h);
-    let params = scene.shading.clone();
-    Frame::build(
-        FrameInput {
-            pyramid: &pyramid,
-            filter,
-            world: &world,
-            camera: &camera,
-            mesh,
-            lod: scheme.name(),
-            size: [scene.image.width, scene.image.height],
-            background: scene.image.background,
-            effects: scene.effects()?,
-            params: &params,
-        },
-        passes,
-    )
+/// A scene's terrain, loaded once, and its clipmap, kept across frames so
+/// a camera path updates it incrementally.
+pub struct Session {
+    pub world: WorldMap,
+    pub pyramid: Arc<Pyramid>,
+    pub filter: Filter,
+    pub scheme: LodScheme,
+    pub clipmap: Option<Clipmap>,
+    effects: Effects,
+    params: ShadeParams,
+    size: [u32; 2],
+    background: [f32; 3],
 }
 
-/// Renders a scene on the CPU.
-pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats)> {
-    let mut passes = Passes::default();
-    let frame = build_frame(scene, &mut passes)?;
-    let (image, raster) = draw(&frame, opts, &mut passes);
+/// The clipmap state a frame was made from, for a back end that draws from
+/// its own copy of the toroidal levels.
+pub struct ClipFrame {
+    pub meshes: Vec<LevelMesh>,
+    pub update: UpdateStats,
+}
+
+impl Session {
+    /// Loads the heightmap and builds the pyramid (timed passes "terrain",
+    /// "pyramid").
+    pub fn new(scene: &Scene, passes: &mut Passes) -> Result<Session> {
+        let h = passes.time("terrain", || scene.heightmap())?;
+        let world = scene.world(&h);
+        let filter = scene.filter()?;
+        let scheme = scene.lod_scheme()?;
+        let effects = scene.effects()?;
+        let (pyramid, clipmap) = match scheme {
+            LodScheme::Clipmap => {
+                let cfg = scene.clipmap_config();
+                let count = scene.clipmap_levels(&h);
+                let pyramid =
+                    Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, count)));
+                let cm = scene.new_clipmap(pyramid.clone(), cfg)?;
+                (pyramid, Some(cm))
+            }
+            // Level 1 only feeds the lightmap's and normal map's blends.
+            LodScheme::BruteForce => (
+                Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, 1))),
+                None,
+            ),
+        };
+        Ok(Session {
+            world,
+            pyramid,
+            filter,
+            scheme,
+            clipmap,
+            effects,
+            params: scene.shading.clone(),
+            size: [scene.image.width, scene.image.height],
+            background: scene.image.background,
+        })
+    }
+
+    /// The frame for `camera` (timed passes "lod" and the frame's own).
+    pub fn frame(
+        &mut self,
+        camera: &Camera,
+        passes: &mut Passes,
+    ) -> Result<(Frame, Option<ClipFrame>)> {
+        let frustum = camera.frustum();
+        let world = &self.world;
+        let (mesh, clip) = match &mut self.clipmap {
+            Some(cm) => passes.time("lod", || {
+                let update = cm.update(world.to_grid(camera.eye));
+                let meshes = cm.meshes(Some((&frustum, world)));
+                let mesh = lod::from_level_meshes(cm, &meshes);
+                (mesh, Some(ClipFrame { meshes, update }))
+            }),
+            None => passes.time("lod", || {
+                (
+                    lod::brute_force::mesh(&self.pyramid.levels[0], &frustum, world),
+                    None,
+                )
+            }),
+        };
+        let frame = Frame::build(
+            FrameInput {
+                pyramid: &self.pyramid,
+                filter: self.filter,
+                world: &self.world,
+                camera,
+                mesh,
+                lod: self.scheme.name(),
+                size: self.size,
+                background: self.background,
+                effects: self.effects,
+                params: &self.params,
+            },
+            passes,
+        )?;
+        Ok((frame, clip))
+    }
+}
+
+/// Builds the scene's frame (everything before rasterisation).
+pub fn build_frame(scene: &Scene, passes: &mut Passes) -> Result<Frame> {
+    let mut session = Session::new(scene, passes)?;
+    Ok(session.frame(&scene.camera(), passes)?.0)
+}
+
+/// Statistics of a render from its frame, image-independent parts.
+pub fn stats(
+    frame: &Frame,
+    backend: &'static str,
+    raster: RasterStats,
+    passes: Passes,
+) -> RenderStats {
     let normals_computed = frame.layout.normal.map_or(0, |_| frame.positions.len())
         + frame
             .resources
@@ -179,10 +243,10 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats
             .flatten()
             .map(|m| m.data.len())
             .sum::<usize>();
-    let stats = RenderStats {
-        width: image.width,
-        height: image.height,
-        backend: "cpu",
+    RenderStats {
+        width: frame.width,
+        height: frame.height,
+        backend,
         lod: frame.lod.clone(),
         triangles: frame.triangle_count(),
         ms_total: passes.total_ms(),
@@ -192,6 +256,13 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats
         raster,
         lightmap_rays: frame.resources.lightmap.as_ref().map_or(0, |l| l.rays),
         normals_computed,
-    };
-    Ok((image, stats))
+    }
+}
+
+/// Renders a scene on the CPU.
+pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats)> {
+    let mut passes = Passes::default();
+    let frame = build_frame(scene, &mut passes)?;
+    let (image, raster) = draw(&frame, opts, &mut passes);
+    Ok((image, stats(&frame, "cpu", raster, passes)))
 }

@@ -5,7 +5,7 @@
 pub mod brute_force;
 
 use crate::camera::Frustum;
-use crate::clipmap::Clipmap;
+use crate::clipmap::{Clipmap, LevelMesh};
 use crate::world::WorldMap;
 
 /// One vertex as the LOD scheme emits it: base-grid position, own height,
@@ -48,11 +48,17 @@ impl LodMesh {
 
 /// The clipmap's meshes for a view, culled to `frustum`.
 pub fn clipmap_mesh(cm: &Clipmap, frustum: &Frustum, world: &WorldMap) -> LodMesh {
+    from_level_meshes(cm, &cm.meshes(Some((frustum, world))))
+}
+
+/// Expands this frame's level meshes (kept for a GPU back end that draws
+/// them from its own textures) into the frame's triangles.
+pub fn from_level_meshes(cm: &Clipmap, meshes: &[LevelMesh]) -> LodMesh {
     let mut out = LodMesh {
         level_info: vec![None; cm.levels().len()],
         ..Default::default()
     };
-    for mesh in cm.meshes(Some((frustum, world))) {
+    for mesh in meshes {
         let lv = &cm.levels()[mesh.level];
         out.level_info[mesh.level] = Some(LevelInfo {
             level: mesh.level,
@@ -60,7 +66,7 @@ pub fn clipmap_mesh(cm: &Clipmap, frustum: &Frustum, world: &WorldMap) -> LodMes
             size: [cm.n() as usize; 2],
             morph: lv.morph.enabled,
         });
-        for t in cm.triangles(&mesh) {
+        for t in cm.triangles(mesh) {
             out.levels.push(mesh.level as u32);
             out.vertices.extend(t.iter().map(|v| LodVertex {
                 col: v.x,

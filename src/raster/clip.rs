@@ -47,12 +47,6 @@ pub fn distance(c: [f32; 4], p: usize) -> f32 {
     }
 }
 
-/// Mesa's sign test: true also when exactly one side is zero.
-#[inline]
-fn different_signs(a: f32, b: f32) -> bool {
-    a * b <= 0.0 && a - b != 0.0
-}
-
 #[inline]
 fn lerp(t: f32, out: f32, inn: f32) -> f32 {
     out + t * (inn - out)
@@ -130,16 +124,27 @@ pub fn clip_triangle(
             if !dp.is_finite() {
                 return;
             }
-            if dp_prev >= 0.0 {
+            let different = if dp_prev >= 0.0 {
                 next.push(prev);
-            }
-            if different_signs(dp, dp_prev) {
-                // Always from the outside end, so both triangles that share
-                // a clipped edge make the same new vertex.
+                dp < 0.0
+            } else {
+                // NaN was rejected above, so this is Mesa's !(dp < 0).
+                dp >= 0.0
+            };
+            if different {
+                // Mesa 22.3 interpolates from the end nearer the plane, with
+                // t measured from that end (its precision fix).
+                let denom = dp - dp_prev;
                 let v = if dp < 0.0 {
-                    interp(dp / (dp - dp_prev), &vert, &prev, n_attrs, linear, vp)
+                    if -dp < dp_prev {
+                        interp(dp / denom, &vert, &prev, n_attrs, linear, vp)
+                    } else {
+                        interp(-dp_prev / denom, &prev, &vert, n_attrs, linear, vp)
+                    }
+                } else if -dp_prev < dp {
+                    interp(-dp_prev / denom, &prev, &vert, n_attrs, linear, vp)
                 } else {
-                    interp(dp_prev / (dp_prev - dp), &prev, &vert, n_attrs, linear, vp)
+                    interp(dp / denom, &vert, &prev, n_attrs, linear, vp)
                 };
                 next.push(v);
             }

@@ -40,7 +40,7 @@ pub const EFFECTS: &[&str] = &[
 ];
 
 /// The effects a scene listed.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Effects {
     pub lambert: bool,
     pub phong: bool,

@@ -1,0 +1,94 @@
+//! Headless device creation: no window, no surface. The adapter's own
+//! limits are requested, because terrain textures (a 4320-wide map at
+//! lightmap scale 2) exceed wgpu's portable defaults.
+
+use crate::error::{Error, Result};
+
+/// Which wgpu backend to open.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Api {
+    Vulkan,
+    Gl,
+}
+
+impl Api {
+    pub fn parse(s: &str) -> Option<Api> {
+        match s {
+            "vulkan" => Some(Api::Vulkan),
+            "gl" => Some(Api::Gl),
+            _ => None,
+        }
+    }
+}
+
+/// An open device.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub api: Api,
+}
+
+impl Gpu {
+    /// Opens the first adapter of `api`; an error (not a panic) if none.
+    pub fn new(api: Api) -> Result<Gpu> {
+        let backends = match api {
+            Api::Vulkan => wgpu::Backends::VULKAN,
+            Api::Gl => wgpu::Backends::GL,
+        };
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| {
+            Error::value(
+                "gpu",
+                format!(
+                    "no {api:?} adapter found ({e}); install a driver, e.g. \
+                     `apt-get install mesa-vulkan-drivers libvulkan1` for lavapipe"
+                ),
+            )
+        })?;
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("terraclip"),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::value("gpu", format!("{}: cannot open device: {e}", info.name)))?;
+        Ok(Gpu {
+            device,
+            queue,
+            info,
+            api,
+        })
+    }
+
+    /// Adapter name as the driver reports it.
+    pub fn adapter(&self) -> String {
+        format!("{} ({:?})", self.info.name, self.info.backend)
+    }
+
+    /// True on the stack RASTER_RULES.md pins: lavapipe from Mesa 22.3.6 on
+    /// x86-64 with FMA, through Vulkan. Parity must then be exact.
+    pub fn exact_expected(&self) -> bool {
+        let fma = {
+            #[cfg(target_arch = "x86_64")]
+            {
+                std::arch::is_x86_feature_detected!("fma")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            {
+                false
+            }
+        };
+        self.api == Api::Vulkan
+            && self.info.name.starts_with("llvmpipe")
+            && self.info.driver_info.contains("Mesa 22.3.6")
+            && fma
+    }
+}

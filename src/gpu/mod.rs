@@ -1,0 +1,579 @@
+//! The wgpu back end: the same [`Frame`] the CPU rasteriser draws, drawn by a
+//! GPU, so terraclip can check GPU terrain renderers (and be checked by
+//! lavapipe, which follows RASTER_RULES.md exactly).
+//!
+//! It does what GPU clipmaps do (GPU Gems 2 ch. 2): heights live in one
+//! toroidal texture layer per level, rewritten only in the update's dirty
+//! rectangles; the vertex shader fetches z and the coarser level's z_c with
+//! `textureLoad` and morphs by α; footprint layouts draw static shapes
+//! translated per block, strip layouts draw the per-frame index list over the
+//! toroid (Brettell). Effects run in the fragment shader, reading the
+//! lightmap and normal maps as textures with explicit texel loads.
+//!
+//! Meshes no clipmap made (brute force) are passed through: the CPU vertex
+//! stage's clip positions and varyings, in a storage buffer.
+
+pub mod device;
+pub mod parity;
+mod textures;
+
+pub use device::{Api, Gpu};
+
+use crate::clipmap::footprint::{self, ShapeId};
+use crate::clipmap::{Clipmap, LevelGeometry, LevelMesh, UpdateStats};
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::raster::unorm8;
+use crate::render::Image;
+use crate::shade::{level_tint, Effects};
+use crate::world::WorldMap;
+use std::collections::HashMap;
+use textures::{Atlas, ToroidTextures};
+use wgpu::util::DeviceExt;
+
+const SHADER: &str = include_str!("shaders/terrain.wgsl");
+/// Levels the uniform block describes.
+const MAX_LEVELS: usize = 32;
+/// Floats per passthrough vertex (see `PT` in the shader).
+const PT: usize = 24;
+/// Bytes of one `Draw` uniform slot (the dynamic-offset alignment).
+const DRAW_STRIDE: u64 = 256;
+
+/// What a clipmap contributes to a GPU draw besides the frame.
+pub struct ClipDraw<'a> {
+    pub clipmap: &'a Clipmap,
+    pub meshes: &'a [LevelMesh],
+    pub world: &'a WorldMap,
+    /// The update since the last draw; `None` uploads every level in full.
+    pub update: Option<&'a UpdateStats>,
+}
+
+/// Corner range of each static shape in the footprint buffer.
+type ShapeRanges = HashMap<ShapeId, (u32, u32)>;
+
+/// A device plus the pipelines and textures that persist across frames.
+pub struct GpuRenderer {
+    pub gpu: Gpu,
+    module: wgpu::ShaderModule,
+    layouts: [wgpu::BindGroupLayout; 2],
+    pipeline_layout: wgpu::PipelineLayout,
+    pipelines: HashMap<Effects, wgpu::RenderPipeline>,
+    toroid: Option<ToroidTextures>,
+    /// Static footprint corners for the current n: (n, buffer, range per shape).
+    footprints: Option<(i64, wgpu::Buffer, ShapeRanges)>,
+}
+
+/// Little std140 writer for the uniform blocks.
+#[derive(Default)]
+struct Words(Vec<u32>);
+
+impl Words {
+    fn f(&mut self, v: &[f32]) {
+        self.0.extend(v.iter().map(|x| x.to_bits()));
+    }
+    fn i(&mut self, v: &[i32]) {
+        self.0.extend(v.iter().map(|x| *x as u32));
+    }
+    fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.0)
+    }
+}
+
+fn i32_of(v: i64, what: &str) -> Result<i32> {
+    i32::try_from(v).map_err(|_| Error::value("gpu", format!("{what} {v} does not fit in i32")))
+}
+
+impl GpuRenderer {
+    pub fn new(gpu: Gpu) -> Self {
+        let d = &gpu.device;
+        let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("terrain.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let vf = wgpu::ShaderStages::VERTEX_FRAGMENT;
+        let tex = |binding, dim| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: vf,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: dim,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let uniform = |binding, dynamic| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: vf,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: dynamic,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let g0 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("globals"),
+            entries: &[
+                uniform(0, false),
+                tex(1, wgpu::TextureViewDimension::D2Array),
+                tex(2, wgpu::TextureViewDimension::D2Array),
+                tex(3, wgpu::TextureViewDimension::D2),
+                tex(4, wgpu::TextureViewDimension::D2),
+            ],
+        });
+        let g1 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("draw"),
+            entries: &[uniform(0, true), storage(1), storage(2), storage(3)],
+        });
+        let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("terrain"),
+            bind_group_layouts: &[Some(&g0), Some(&g1)],
+            immediate_size: 0,
+        });
+        GpuRenderer {
+            gpu,
+            module,
+            layouts: [g0, g1],
+            pipeline_layout,
+            pipelines: HashMap::new(),
+            toroid: None,
+            footprints: None,
+        }
+    }
+
+    /// Drops the toroidal textures, so the next clipmap draw uploads every
+    /// level (a new session, or a clipmap that was not updated in step).
+    pub fn forget_textures(&mut self) {
+        self.toroid = None;
+    }
+
+    /// Texels the last clipmap draw wrote to the toroidal textures.
+    pub fn texels_uploaded(&self) -> u64 {
+        self.toroid.as_ref().map_or(0, |t| t.texels_written)
+    }
+
+    /// The pipeline for an effect set: effects are override constants, so an
+    /// effect the scene does not list is compiled out of both stages.
+    fn pipeline(&mut self, e: &Effects) -> &wgpu::RenderPipeline {
+        let (d, module, layout) = (&self.gpu.device, &self.module, &self.pipeline_layout);
+        self.pipelines.entry(*e).or_insert_with(|| {
+            let b = |v: bool| if v { 1.0 } else { 0.0 };
+            let constants = [
+                ("LIT", b(e.lit())),
+                ("PHONG", b(e.phong)),
+                ("FOG", b(e.fog)),
+                ("SHADOWS", b(e.shadows)),
+                ("NORMAL_MAP", b(e.normal_map)),
+                ("VERTEX_NORMALS", b(e.lit() && !e.normal_map)),
+                ("LEVEL_TINT", b(e.level_tint)),
+                ("WIREFRAME", b(e.wireframe)),
+            ];
+            let opts = wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                zero_initialize_workgroup_memory: true,
+            };
+            d.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("terrain"),
+                layout: Some(layout),
+                vertex: wgpu::VertexState {
+                    module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: opts.clone(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: opts,
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        })
+    }
+
+    /// The static footprint corners for grid size n, built once per n.
+    fn footprint_buffer(&mut self, cm: &Clipmap) {
+        let n = cm.n();
+        if self.footprints.as_ref().is_some_and(|f| f.0 == n) {
+            return;
+        }
+        let fp = cm.footprints();
+        let mut ids = vec![
+            ShapeId::Block,
+            ShapeId::FixupVertical,
+            ShapeId::FixupHorizontal,
+            ShapeId::Centre,
+            ShapeId::Ring,
+        ];
+        ids.extend((0..4).map(ShapeId::Trim));
+        let mut corners: Vec<[i32; 2]> = vec![];
+        let mut ranges = HashMap::new();
+        for id in ids {
+            let s = fp.shape(id);
+            let start = corners.len() as u32;
+            for t in &s.triangles {
+                corners.extend(t.iter().map(|&k| s.vertices[k as usize]));
+            }
+            ranges.insert(id, (start, corners.len() as u32));
+        }
+        let buf = self.storage(bytemuck::cast_slice(&corners), "footprints");
+        self.footprints = Some((n, buf, ranges));
+    }
+
+    fn storage(&self, bytes: &[u8], label: &str) -> wgpu::Buffer {
+        // A binding must not be empty.
+        let pad = [0u8; 16];
+        self.gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: if bytes.is_empty() { &pad } else { bytes },
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    }
+
+    /// Draws `frame`; with `clip`, from the clipmap's toroidal textures.
+    pub fn draw(&mut self, frame: &Frame, clip: Option<ClipDraw>) -> Result<Image> {
+        let (w, h) = (frame.width, frame.height);
+        let u = &frame.uniforms;
+        let e = frame.effects;
+        let need_gradients = e.lit() && !e.normal_map;
+
+        // Per-draw uniforms and the geometry they index.
+        let mut draws: Vec<(Words, std::ops::Range<u32>)> = vec![];
+        let mut strips: Vec<u32> = vec![];
+        let mut passthrough: Vec<f32> = vec![];
+        if let Some(c) = &clip {
+            let cm = c.clipmap;
+            let tt = self
+                .toroid
+                .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
+            tt.sync(&self.gpu, cm, c.world, c.update, need_gradients);
+            self.footprint_buffer(cm);
+            let n = cm.n();
+            for mesh in c.meshes {
+                let l = mesh.level;
+                let lv = &cm.levels()[l];
+                let o = lv.regions.origin;
+                let g = 1i64 << l;
+                let m = &lv.morph;
+                let mut base = Words::default();
+                let mode = match mesh.geometry {
+                    LevelGeometry::Strips { .. } => 1,
+                    LevelGeometry::Footprints { .. } => 2,
+                };
+                base.i(&[l as i32, g as i32, n as i32, mode]);
+                base.i(&[
+                    i32_of(o[0], "window origin")?,
+                    i32_of(o[1], "window origin")?,
+                    o[0].rem_euclid(n) as i32,
+                    o[1].rem_euclid(n) as i32,
+                ]);
+                let rel = [
+                    i32_of(o[0] * g - u.origin[0], "window offset")?,
+                    i32_of(u.origin[1] - o[1] * g, "window offset")?,
+                ];
+                let tail = |inst: [i32; 2]| {
+                    let mut t = Words::default();
+                    t.i(&[rel[0], rel[1], inst[0], inst[1]]);
+                    t.f(&[m.viewer[0], m.viewer[1], m.half, m.width]);
+                    t.i(&m.boundary);
+                    t.i(&m.stitched.map(i32::from));
+                    t.i(&[m.enabled as i32, m.enabled as i32, 0, 0]);
+                    t
+                };
+                let mut slot = |inst: [i32; 2], range: std::ops::Range<u32>| {
+                    let mut words = Words(base.0.clone());
+                    words.0.extend(tail(inst).0);
+                    draws.push((words, range));
+                };
+                match &mesh.geometry {
+                    LevelGeometry::Strips { strip, ring } => {
+                        let start = strips.len() as u32;
+                        for t in footprint::strip_to_triangles(strip).iter().chain(ring) {
+                            strips.extend_from_slice(t);
+                        }
+                        slot([0, 0], start..strips.len() as u32);
+                    }
+                    LevelGeometry::Footprints { instances } => {
+                        let ranges = &self.footprints.as_ref().expect("built").2;
+                        for i in instances {
+                            let (a, b) = ranges[&i.shape];
+                            let off = [(i.offset[0] - o[0]) as i32, (i.offset[1] - o[1]) as i32];
+                            slot(off, a..b);
+                        }
+                    }
+                }
+            }
+        } else {
+            // Passthrough: one draw per run of triangles on the same level.
+            let lay = &frame.layout;
+            let k = lay.len();
+            passthrough = vec![0.0; frame.positions.len() * PT];
+            for (i, rec) in passthrough.chunks_exact_mut(PT).enumerate() {
+                rec[..4].copy_from_slice(&u.clip(frame.positions[i]));
+                let a = &frame.attrs[i * k..(i + 1) * k];
+                let put = |rec: &mut [f32], at: usize, src: Option<usize>, len: usize| {
+                    if let Some(s) = src {
+                        rec[at..at + len].copy_from_slice(&a[s..s + len]);
+                    }
+                };
+                put(rec, 4, lay.albedo, 3);
+                put(rec, 7, lay.normal, 3);
+                put(rec, 10, lay.uv, 2);
+                put(rec, 12, lay.alpha, 1);
+                put(rec, 13, lay.fog, 1);
+                put(rec, 14, lay.view, 3);
+                put(rec, 20, lay.edge, 3);
+            }
+            let levels = &frame.mesh.levels;
+            let mut t = 0;
+            while t < levels.len() {
+                let l = levels[t];
+                let end = (t..levels.len())
+                    .find(|&j| levels[j] != l)
+                    .unwrap_or(levels.len());
+                let mut words = Words::default();
+                words.i(&[l as i32, 1, 1, 0]);
+                words.0.resize(28, 0);
+                draws.push((words, 3 * t as u32..3 * end as u32));
+                t = end;
+            }
+        }
+
+        // Global uniforms.
+        let mut gl = Words::default();
+        for c in u.view_proj {
+            gl.f(&c);
+        }
+        gl.f(&[u.eye[0], u.eye[1], u.eye[2], 1.0]);
+        let fog_rate = crate::shade::fog::rate(frame.params.fog_density);
+        gl.f(&[u.cell[0], u.cell[1], u.vertical_scale, fog_rate]);
+        let (lo, span) = frame.height_ramp;
+        let p = &frame.params;
+        gl.f(&[lo, span, p.ambient, p.specular_strength]);
+        let sun = p.sun_direction().map(|c| c as f32);
+        gl.f(&[sun[0], sun[1], sun[2], 0.0]);
+        let fc = p.fog_colour.unwrap_or(frame.background);
+        gl.f(&[fc[0], fc[1], fc[2], 0.0]);
+        gl.f(&[p.wire_colour[0], p.wire_colour[1], p.wire_colour[2], 0.0]);
+        gl.f(&[w as f32, h as f32, 0.0, 0.0]);
+        let lm = frame.resources.lightmap.as_ref();
+        let lm_levels = lm.map_or(0, |l| l.pyramid.levels.len());
+        gl.i(&[
+            clip.as_ref().map_or(1, |c| c.clipmap.n() as i32),
+            lm_levels as i32,
+            lm.map_or(1, |l| l.scale as i32),
+            p.specular_squarings as i32,
+        ]);
+        let lm_atlas = Atlas::lightmap(&self.gpu, lm)?;
+        let nm_atlas = Atlas::normal_maps(&self.gpu, &frame.resources.normal_maps)?;
+        for l in 0..MAX_LEVELS {
+            let info = frame.resources.levels.get(l).copied().flatten();
+            let o = info.map_or([0, 0], |i| i.origin);
+            let nm = frame.resources.normal_maps.get(l).and_then(|m| m.as_ref());
+            let nmo = nm.map_or([0, 0], |m| m.origin);
+            gl.i(&[
+                i32_of(o[0], "window origin")?,
+                i32_of(o[1], "window origin")?,
+                i32_of(nmo[0], "normal-map origin")?,
+                i32_of(nmo[1], "normal-map origin")?,
+            ]);
+            let nms = nm.map_or([0, 0], |m| m.size.map(|s| s as i32));
+            gl.i(&[nms[0], nms[1], nm_atlas.row(l), nm.is_some() as i32]);
+            let lml = lm.and_then(|m| m.pyramid.levels.get(l));
+            let lmd = lml.map_or([0, 0], |p| [p.width as i32, p.height as i32]);
+            gl.i(&[lm_atlas.row(l), lmd[0], lmd[1], 0]);
+            let t = level_tint::albedo(l as u32);
+            gl.f(&[t[0], t[1], t[2], 0.0]);
+        }
+
+        let dev = &self.gpu.device;
+        let globals = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("globals"),
+            contents: gl.bytes(),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut draw_bytes = vec![0u8; draws.len().max(1) * DRAW_STRIDE as usize];
+        for (i, (words, _)) in draws.iter().enumerate() {
+            let b = words.bytes();
+            let at = i * DRAW_STRIDE as usize;
+            draw_bytes[at..at + b.len()].copy_from_slice(b);
+        }
+        let draw_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("draws"),
+            contents: &draw_bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let strip_buf = self.storage(bytemuck::cast_slice(&strips), "strips");
+        let pt_buf = self.storage(bytemuck::cast_slice(&passthrough), "passthrough");
+        let empty = self.storage(&[], "empty");
+        let fp_buf = self.footprints.as_ref().map_or(&empty, |f| &f.1);
+        let dummy = ToroidTextures::empty(&self.gpu);
+        let tt = if clip.is_some() {
+            self.toroid.as_ref().expect("synced")
+        } else {
+            &dummy
+        };
+        let view = |t: &wgpu::Texture, dim| {
+            t.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(dim),
+                ..Default::default()
+            })
+        };
+        let a2 = wgpu::TextureViewDimension::D2Array;
+        let d2 = wgpu::TextureViewDimension::D2;
+        let (hv, gv) = (view(&tt.heights, a2), view(&tt.gradients, a2));
+        let (lv, nv) = (view(&lm_atlas.texture, d2), view(&nm_atlas.texture, d2));
+        let bg0 = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("globals"),
+            layout: &self.layouts[0],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&hv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&gv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&lv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(&nv),
+                },
+            ],
+        });
+        let bg1 = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("draw"),
+            layout: &self.layouts[1],
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &draw_buf,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(DRAW_STRIDE),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: strip_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: fp_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: pt_buf.as_entire_binding(),
+                },
+            ],
+        });
+
+        let extent = wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        };
+        let target = |format, label| {
+            dev.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: extent,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let colour = target(wgpu::TextureFormat::Rgba8Unorm, "colour");
+        let depth = target(wgpu::TextureFormat::Depth32Float, "depth");
+        let (cv, dv) = (
+            colour.create_view(&Default::default()),
+            depth.create_view(&Default::default()),
+        );
+        // The clear colour is the CPU's 8-bit background, so conversion
+        // rounding cannot differ.
+        let bg = frame.background.map(|c| unorm8(c) as f64 / 255.0);
+        let pipeline = self.pipeline(&e).clone();
+        let dev = &self.gpu.device;
+        let mut enc = dev.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("terrain"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &cv,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: bg[0],
+                            g: bg[1],
+                            b: bg[2],
+                            a: 1.0,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &dv,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                ..Default::default()
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bg0, &[]);
+            for (i, (_, range)) in draws.iter().enumerate() {
+                if range.is_empty() {
+                    continue;
+                }
+                pass.set_bind_group(1, &bg1, &[(i as u64 * DRAW_STRIDE) as u32]);
+                pass.draw(range.clone(), 0..1);
+            }
+        }
+        let rgba = textures::read_back(&self.gpu, enc, &colour, &depth, w, h)?;
+        Ok(rgba)
+    }
+}

@@ -1,0 +1,338 @@
+//! GPU-side textures: the clipmap's toroidal levels (heights, and slopes for
+//! per-vertex normals), the lightmap and normal-map atlases, and readback.
+
+use super::Gpu;
+use crate::clipmap::toroid::{TexRect, Toroid};
+use crate::clipmap::{Clipmap, UpdateStats};
+use crate::error::{Error, Result};
+use crate::render::Image;
+use crate::shade::normal_map::NormalMap;
+use crate::shade::normals;
+use crate::shade::shadows::Lightmap;
+use crate::world::WorldMap;
+
+fn texture(gpu: &Gpu, size: [u32; 3], format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size[0].max(1),
+            height: size[1].max(1),
+            depth_or_array_layers: size[2].max(1),
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+/// Writes `data` (rows of `row_texels` texels of `texel` bytes) into the
+/// rectangle at (x, y) of layer `layer`.
+fn write(gpu: &Gpu, t: &wgpu::Texture, at: [u32; 3], size: [u32; 2], data: &[u8], row_bytes: u32) {
+    gpu.queue.write_texture(
+        wgpu::TexelCopyTextureInfo {
+            texture: t,
+            mip_level: 0,
+            origin: wgpu::Origin3d {
+                x: at[0],
+                y: at[1],
+                z: at[2],
+            },
+            aspect: wgpu::TextureAspect::All,
+        },
+        data,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(row_bytes),
+            rows_per_image: Some(size[1]),
+        },
+        wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        },
+    );
+}
+
+/// One n×n layer per clipmap level, mirroring each level's toroid.
+pub struct ToroidTextures {
+    pub heights: wgpu::Texture,
+    pub gradients: wgpu::Texture,
+    n: usize,
+    layers: usize,
+    has_gradients: bool,
+    /// Texels written by the last sync (for the statistics).
+    pub texels_written: u64,
+}
+
+impl ToroidTextures {
+    /// Placeholders for draws that use no clipmap.
+    pub fn empty(gpu: &Gpu) -> Self {
+        ToroidTextures {
+            heights: texture(gpu, [1, 1, 1], wgpu::TextureFormat::R32Float, "heights"),
+            gradients: texture(gpu, [1, 1, 1], wgpu::TextureFormat::Rg32Float, "slopes"),
+            n: 0,
+            layers: 0,
+            has_gradients: false,
+            texels_written: 0,
+        }
+    }
+
+    /// Brings the textures up to date with `cm`: only the update's dirty
+    /// rectangles when the textures already mirror the previous state,
+    /// everything otherwise.
+    pub fn sync(
+        &mut self,
+        gpu: &Gpu,
+        cm: &Clipmap,
+        world: &WorldMap,
+        update: Option<&UpdateStats>,
+        need_gradients: bool,
+    ) {
+        let n = cm.n() as usize;
+        let layers = cm.levels().len();
+        let fresh = self.n != n || self.layers != layers;
+        if fresh {
+            let size = [n as u32, n as u32, layers as u32];
+            self.heights = texture(gpu, size, wgpu::TextureFormat::R32Float, "heights");
+            self.n = n;
+            self.layers = layers;
+            self.has_gradients = false;
+        }
+        let full_gradients = need_gradients && !self.has_gradients;
+        if full_gradients {
+            let size = [n as u32, n as u32, layers as u32];
+            self.gradients = texture(gpu, size, wgpu::TextureFormat::Rg32Float, "slopes");
+            self.has_gradients = true;
+        }
+        let all = TexRect {
+            x0: 0,
+            y0: 0,
+            x1: n,
+            y1: n,
+        };
+        self.texels_written = 0;
+        for (l, lv) in cm.levels().iter().enumerate() {
+            let rects: Vec<TexRect> = match update {
+                Some(u) if !fresh => u.rects_per_level.get(l).cloned().unwrap_or_default(),
+                _ => vec![all],
+            };
+            let heights = lv.heights.texels();
+            for r in &rects {
+                let (w, h) = ((r.x1 - r.x0) as u32, (r.y1 - r.y0) as u32);
+                let data: &[f32] = &heights[r.y0 * n + r.x0..];
+                let rows = (h as usize - 1) * n + w as usize;
+                write(
+                    gpu,
+                    &self.heights,
+                    [r.x0 as u32, r.y0 as u32, l as u32],
+                    [w, h],
+                    bytemuck::cast_slice(&data[..rows]),
+                    4 * n as u32,
+                );
+                self.texels_written += r.area() as u64;
+            }
+            if self.has_gradients {
+                let grads = if full_gradients { vec![all] } else { rects };
+                for r in &grads {
+                    self.write_gradients(gpu, cm, world, l, r);
+                }
+            }
+        }
+    }
+
+    /// Slopes of level `l` over toroid rectangle `r`, by the CPU's own
+    /// `normals::gradient` (f64 scale factors the shader cannot repeat).
+    fn write_gradients(&self, gpu: &Gpu, cm: &Clipmap, world: &WorldMap, l: usize, r: &TexRect) {
+        let lv = &cm.levels()[l];
+        let Some(o) = lv.heights.origin() else { return };
+        let p = &cm.pyramid().levels[l];
+        let s = self.n;
+        let spacing = (1u64 << l) as f64;
+        let mut data = Vec::with_capacity(r.area());
+        for ty in r.y0..r.y1 {
+            let y = Toroid::<f32>::world_of(ty, o[1], s);
+            for tx in r.x0..r.x1 {
+                let x = Toroid::<f32>::world_of(tx, o[0], s);
+                data.push(normals::gradient(p, x, y, spacing, world));
+            }
+        }
+        let w = (r.x1 - r.x0) as u32;
+        write(
+            gpu,
+            &self.gradients,
+            [r.x0 as u32, r.y0 as u32, l as u32],
+            [w, (r.y1 - r.y0) as u32],
+            bytemuck::cast_slice(&data),
+            8 * w,
+        );
+    }
+}
+
+/// Per-level images stacked vertically in one texture; `rows[l]` is level
+/// l's first row.
+pub struct Atlas {
+    pub texture: wgpu::Texture,
+    rows: Vec<i32>,
+}
+
+impl Atlas {
+    pub fn row(&self, l: usize) -> i32 {
+        self.rows.get(l).copied().unwrap_or(0)
+    }
+
+    fn check(gpu: &Gpu, w: usize, h: usize, what: &str) -> Result<()> {
+        let max = gpu.device.limits().max_texture_dimension_2d as usize;
+        if w > max || h > max {
+            return Err(Error::value(
+                "gpu",
+                format!("{what} atlas {w}×{h} exceeds the adapter's {max} texels"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The lightmap's pyramid, one R32Float level under another.
+    pub fn lightmap(gpu: &Gpu, lm: Option<&Lightmap>) -> Result<Atlas> {
+        let levels = lm.map_or(&[][..], |l| &l.pyramid.levels[..]);
+        let w = levels.iter().map(|p| p.width).max().unwrap_or(1);
+        let h: usize = levels.iter().map(|p| p.height).sum();
+        Self::check(gpu, w, h, "lightmap")?;
+        let texture = texture(
+            gpu,
+            [w as u32, h as u32, 1],
+            wgpu::TextureFormat::R32Float,
+            "lightmap",
+        );
+        let mut rows = vec![];
+        let mut y = 0;
+        for p in levels {
+            rows.push(y as i32);
+            let sz = [p.width as u32, p.height as u32];
+            write(
+                gpu,
+                &texture,
+                [0, y as u32, 0],
+                sz,
+                bytemuck::cast_slice(&p.data),
+                4 * sz[0],
+            );
+            y += p.height;
+        }
+        Ok(Atlas { texture, rows })
+    }
+
+    /// The drawn levels' normal maps, RGBA32Float (xyz used).
+    pub fn normal_maps(gpu: &Gpu, maps: &[Option<NormalMap>]) -> Result<Atlas> {
+        let w = maps.iter().flatten().map(|m| m.size[0]).max().unwrap_or(1);
+        let h: usize = maps.iter().flatten().map(|m| m.size[1]).sum();
+        Self::check(gpu, w, h, "normal-map")?;
+        let texture = texture(
+            gpu,
+            [w as u32, h as u32, 1],
+            wgpu::TextureFormat::Rgba32Float,
+            "normal maps",
+        );
+        let mut rows = vec![];
+        let mut y = 0;
+        for m in maps {
+            rows.push(y as i32);
+            if let Some(m) = m {
+                let data: Vec<[f32; 4]> = m.data.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect();
+                let sz = [m.size[0] as u32, m.size[1] as u32];
+                write(
+                    gpu,
+                    &texture,
+                    [0, y as u32, 0],
+                    sz,
+                    bytemuck::cast_slice(&data),
+                    16 * sz[0],
+                );
+                y += m.size[1];
+            }
+        }
+        Ok(Atlas { texture, rows })
+    }
+}
+
+/// Submits `enc` with copies of the colour and depth targets appended and
+/// returns them, unpadding the 256-byte rows.
+pub fn read_back(
+    gpu: &Gpu,
+    mut enc: wgpu::CommandEncoder,
+    colour: &wgpu::Texture,
+    depth: &wgpu::Texture,
+    w: u32,
+    h: u32,
+) -> Result<Image> {
+    let row =
+        (4 * w).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let size = row as u64 * h as u64;
+    let buf = |label| {
+        gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    };
+    let (cb, db) = (buf("colour readback"), buf("depth readback"));
+    let extent = wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: 1,
+    };
+    for (tex, b, aspect) in [
+        (colour, &cb, wgpu::TextureAspect::All),
+        (depth, &db, wgpu::TextureAspect::DepthOnly),
+    ] {
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: tex,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: b,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
+            },
+            extent,
+        );
+    }
+    gpu.queue.submit([enc.finish()]);
+    for b in [&cb, &db] {
+        b.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    }
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::value("gpu", format!("readback failed: {e}")))?;
+    let unpad = |b: &wgpu::Buffer| -> Result<Vec<u8>> {
+        let view = b
+            .slice(..)
+            .get_mapped_range()
+            .map_err(|e| Error::value("gpu", format!("readback failed: {e}")))?;
+        let mut out = Vec::with_capacity((4 * w * h) as usize);
+        for r in 0..h as usize {
+            out.extend_from_slice(&view[r * row as usize..r * row as usize + 4 * w as usize]);
+        }
+        Ok(out)
+    };
+    let rgba = unpad(&cb)?;
+    let depth: Vec<f32> = unpad(&db)?
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    Ok(Image {
+        width: w,
+        height: h,
+        rgba,
+        depth,
+    })
+}
