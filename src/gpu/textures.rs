@@ -279,15 +279,18 @@ pub fn read_back(
         })
     };
     let (cb, db) = (buf("colour readback"), buf("depth readback"));
+    // wgpu's GL backend cannot copy depth out; GL images carry no depth.
+    let with_depth = gpu.api != super::Api::Gl;
     let extent = wgpu::Extent3d {
         width: w,
         height: h,
         depth_or_array_layers: 1,
     };
-    for (tex, b, aspect) in [
+    let copies = [
         (colour, &cb, wgpu::TextureAspect::All),
         (depth, &db, wgpu::TextureAspect::DepthOnly),
-    ] {
+    ];
+    for (tex, b, aspect) in copies.into_iter().take(1 + with_depth as usize) {
         enc.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
                 texture: tex,
@@ -307,7 +310,7 @@ pub fn read_back(
         );
     }
     gpu.queue.submit([enc.finish()]);
-    for b in [&cb, &db] {
+    for b in [&cb, &db].into_iter().take(1 + with_depth as usize) {
         b.slice(..).map_async(wgpu::MapMode::Read, |_| {});
     }
     gpu.device
@@ -325,6 +328,14 @@ pub fn read_back(
         Ok(out)
     };
     let rgba = unpad(&cb)?;
+    if !with_depth {
+        return Ok(Image {
+            width: w,
+            height: h,
+            rgba,
+            depth: vec![],
+        });
+    }
     let depth: Vec<f32> = unpad(&db)?
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
