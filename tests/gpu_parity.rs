@@ -40,7 +40,11 @@ fn every_golden_scene_matches_the_cpu() {
         eprintln!("{name}: {res:?} (exact: {exact})");
         assert!(res.pass, "{name}: {res:?}");
         if exact {
-            assert_eq!((res.colour_px_differ, res.depth_px_differ), (0, 0), "{name}");
+            assert_eq!(
+                (res.colour_px_differ, res.depth_px_differ),
+                (0, 0),
+                "{name}"
+            );
         }
     }
 }
