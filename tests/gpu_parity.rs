@@ -95,3 +95,21 @@ fn tolerance_mode_accepts_one_step_and_rejects_more() {
     assert_eq!((d.depth_px_differ, d.max_depth_ulp), (1, 5));
     assert!(!d.passes(false, 10_000));
 }
+
+#[test]
+fn brute_force_passthrough_matches_the_cpu() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let mut scene = Scene::load(Path::new("golden/jacksboro-oblique.toml")).unwrap();
+    let effects = ["lambert", "fog", "shadows", "wireframe"];
+    scene
+        .apply(&terraclip::scene::Overrides {
+            lod: Some("brute-force".into()),
+            effects: Some(effects.iter().map(|s| s.to_string()).collect()),
+            ..Default::default()
+        })
+        .unwrap();
+    let res = parity::check(&mut r, &scene, "brute-force", 1, 0.0, &out(), exact).unwrap();
+    eprintln!("brute force: {res:?}");
+    assert!(res.pass && res.triangles > 100_000, "{res:?}");
+}
