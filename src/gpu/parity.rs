@@ -4,7 +4,7 @@
 use super::{ClipDraw, GpuRenderer};
 use crate::camera::Camera;
 use crate::error::{write_atomic, Result};
-use crate::render::{self, Image, RenderOptions, RenderStats, Session};
+use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
 use crate::scene::Scene;
 use crate::stats::Passes;
 use glam::DVec3;
@@ -91,19 +91,39 @@ pub fn gpu_frame(
     passes: &mut Passes,
 ) -> Result<(crate::frame::Frame, Image)> {
     let (frame, clip) = session.frame(camera, passes)?;
-    let image = passes.time("gpu", || match (&clip, &session.clipmap) {
-        (Some(c), Some(cm)) => r.draw(
+    let image = passes.time("gpu", || {
+        draw_session(
+            r,
             &frame,
+            clip.as_ref(),
+            session,
+            clip.as_ref().map(|c| &c.update),
+        )
+    })?;
+    Ok((frame, image))
+}
+
+/// Draws `frame` from the session's clipmap textures when it has a
+/// clipmap, passed through otherwise.
+fn draw_session(
+    r: &mut GpuRenderer,
+    frame: &crate::frame::Frame,
+    clip: Option<&ClipFrame>,
+    session: &Session,
+    update: Option<&crate::clipmap::UpdateStats>,
+) -> Result<Image> {
+    match (clip, &session.clipmap) {
+        (Some(c), Some(cm)) => r.draw(
+            frame,
             Some(ClipDraw {
                 clipmap: cm,
                 meshes: &c.meshes,
                 world: &session.world,
-                update: Some(&c.update),
+                update,
             }),
         ),
-        _ => r.draw(&frame, None),
-    })?;
-    Ok((frame, image))
+        _ => r.draw(frame, None),
+    }
 }
 
 /// Renders a scene on the GPU (`render --backend gpu`).
@@ -233,24 +253,11 @@ pub fn bench(r: &mut GpuRenderer, scene: &Scene, frames: usize, repeats: usize) 
     let mut session = Session::new(scene, &mut passes)?;
     let camera = scene.camera();
     let (frame, clip) = session.frame(&camera, &mut passes)?;
-    let cm = session.clipmap.as_ref();
     let still = crate::clipmap::UpdateStats::default();
-    let draw_gpu = |r: &mut GpuRenderer| -> Result<Image> {
-        match (&clip, cm) {
-            (Some(c), Some(cm)) => r.draw(
-                &frame,
-                Some(ClipDraw {
-                    clipmap: cm,
-                    meshes: &c.meshes,
-                    world: &session.world,
-                    // A still camera: a real frame would upload the update's
-                    // rectangles, which are empty here.
-                    update: Some(&still),
-                }),
-            ),
-            _ => r.draw(&frame, None),
-        }
-    };
+    // A still camera: a real frame would upload the update's rectangles,
+    // which are empty here.
+    let draw_gpu =
+        |r: &mut GpuRenderer| draw_session(r, &frame, clip.as_ref(), &session, Some(&still));
     r.forget_textures();
     // Warm up both (pipeline compilation, first full upload, caches).
     draw_gpu(r)?;
