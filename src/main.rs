@@ -37,7 +37,7 @@ struct SceneArgs {
     /// Image size WIDTHxHEIGHT.
     #[arg(long, value_parser = Overrides::parse_size)]
     size: Option<[u32; 2]>,
-    /// LOD scheme (clipmap, brute-force).
+    /// LOD scheme (clipmap, brute-force, geomipmap, roam, annulus, cdlod).
     #[arg(long)]
     lod: Option<String>,
     /// Comma-separated effects (empty for none).

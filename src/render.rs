@@ -3,14 +3,13 @@
 //! need.
 
 use crate::camera::Camera;
-use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
 use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameInput};
-use crate::lod;
+use crate::lod::{Lod, LodUpdate, View};
 use crate::pyramid::Filter;
 use crate::pyramid::Pyramid;
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
-use crate::scene::{LodScheme, Scene};
+use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
 use crate::stats::{Pass, Passes};
@@ -123,26 +122,22 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
     (image, r.stats)
 }
 
-/// A scene's terrain, loaded once, and its clipmap, kept across frames so
-/// a camera path updates it incrementally.
+/// A scene's terrain, loaded once, and its LOD scheme, kept across frames
+/// so a camera path updates it incrementally.
 pub struct Session {
     pub world: WorldMap,
     pub pyramid: Arc<Pyramid>,
     pub filter: Filter,
-    pub scheme: LodScheme,
-    pub clipmap: Option<Clipmap>,
+    pub lod: Box<dyn Lod>,
+    /// What the last frame's LOD update changed.
+    pub last_update: LodUpdate,
     effects: Effects,
     params: ShadeParams,
     size: [u32; 2],
     background: [f32; 3],
 }
 
-/// The clipmap state a frame was made from, for a back end that draws from
-/// its own copy of the toroidal levels.
-pub struct ClipFrame {
-    pub meshes: Vec<LevelMesh>,
-    pub update: UpdateStats,
-}
+pub use crate::lod::clipmap::ClipFrame;
 
 impl Session {
     /// Loads the heightmap and builds the pyramid (timed passes "terrain",
@@ -151,29 +146,17 @@ impl Session {
         let h = passes.time("terrain", || scene.heightmap())?;
         let world = scene.world(&h);
         let filter = scene.filter()?;
-        let scheme = scene.lod_scheme()?;
+        let cfg = scene.lod_config()?;
         let effects = scene.effects()?;
-        let (pyramid, clipmap) = match scheme {
-            LodScheme::Clipmap => {
-                let cfg = scene.clipmap_config();
-                let count = scene.clipmap_levels(&h);
-                let pyramid =
-                    Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, count)));
-                let cm = scene.new_clipmap(pyramid.clone(), cfg)?;
-                (pyramid, Some(cm))
-            }
-            // Level 1 only feeds the lightmap's and normal map's blends.
-            LodScheme::BruteForce => (
-                Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, 1))),
-                None,
-            ),
-        };
+        let count = cfg.pyramid_levels(h.width(), h.height());
+        let pyramid = Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, count)));
+        let lod = scene.new_lod(&cfg, pyramid.clone())?;
         Ok(Session {
             world,
             pyramid,
             filter,
-            scheme,
-            clipmap,
+            lod,
+            last_update: LodUpdate::default(),
             effects,
             params: scene.shading.clone(),
             size: [scene.image.width, scene.image.height],
@@ -181,28 +164,24 @@ impl Session {
         })
     }
 
-    /// The frame for `camera` (timed passes "lod" and the frame's own).
+    /// The frame for `camera` (timed passes "lod", "mesh" and the frame's
+    /// own), and for a clipmap the level meshes it was made from.
     pub fn frame(
         &mut self,
         camera: &Camera,
         passes: &mut Passes,
     ) -> Result<(Frame, Option<ClipFrame>)> {
         let frustum = camera.frustum();
-        let world = &self.world;
-        let (mesh, clip) = match &mut self.clipmap {
-            Some(cm) => passes.time("lod", || {
-                let update = cm.update(world.to_grid(camera.eye));
-                let meshes = cm.meshes(Some((&frustum, world)));
-                let mesh = lod::from_level_meshes(cm, &meshes);
-                (mesh, Some(ClipFrame { meshes, update }))
-            }),
-            None => passes.time("lod", || {
-                (
-                    lod::brute_force::mesh(&self.pyramid.levels[0], &frustum, world),
-                    None,
-                )
-            }),
+        let view = View {
+            camera,
+            frustum: &frustum,
+            world: &self.world,
+            viewport: self.size,
         };
+        let lod = &mut self.lod;
+        self.last_update = passes.time("lod", || lod.update(&view));
+        let mesh = passes.time("mesh", || lod.mesh(&view));
+        let clip = lod.take_clip_frame();
         let frame = Frame::build(
             FrameInput {
                 pyramid: &self.pyramid,
@@ -210,7 +189,7 @@ impl Session {
                 world: &self.world,
                 camera,
                 mesh,
-                lod: self.scheme.name(),
+                lod: self.lod.name(),
                 size: self.size,
                 background: self.background,
                 effects: self.effects,

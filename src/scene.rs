@@ -7,6 +7,7 @@ use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
 use crate::error::{Error, Result};
 use crate::heightmap::procedural::Procedural;
 use crate::heightmap::Heightmap;
+use crate::lod::{annulus, cdlod, geomipmap, roam, LodConfig};
 use crate::pyramid::{Filter, Pyramid};
 use crate::shade::{Effects, ShadeParams};
 use crate::world::WorldMap;
@@ -24,28 +25,14 @@ pub const MAX_IMAGE_SIDE: u32 = 16384;
 pub use crate::shade::EFFECTS;
 
 /// The LOD schemes a scene can name.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LodScheme {
-    Clipmap,
-    BruteForce,
-}
-
-impl LodScheme {
-    pub const NAMES: &'static [&'static str] = &["clipmap", "brute-force"];
-    pub fn parse(s: &str) -> Option<Self> {
-        match s {
-            "clipmap" => Some(LodScheme::Clipmap),
-            "brute-force" => Some(LodScheme::BruteForce),
-            _ => None,
-        }
-    }
-    pub fn name(&self) -> &'static str {
-        match self {
-            LodScheme::Clipmap => "clipmap",
-            LodScheme::BruteForce => "brute-force",
-        }
-    }
-}
+pub const LOD_SCHEMES: &[&str] = &[
+    "clipmap",
+    "brute-force",
+    "geomipmap",
+    "roam",
+    "annulus",
+    "cdlod",
+];
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(untagged)]
@@ -93,6 +80,20 @@ pub struct Lod {
     pub layout: Layout,
     pub transition: Option<f32>,
     pub texel_budget: Option<u64>,
+    /// GeoMipMapping: block side in vertices, 2^k + 1.
+    pub block: Option<usize>,
+    /// GeoMipMapping level choice: "linear", "exponential" or "error".
+    pub mode: Option<String>,
+    /// GeoMipMapping distance modes: distance (metres) of the first step.
+    pub distance: Option<f64>,
+    /// Screen-space error threshold in pixels (GeoMipMapping "error" mode,
+    /// ROAM).
+    pub tau: Option<f64>,
+    /// ROAM: triangle budget; CDLOD: node side in cells (2^k).
+    pub max_triangles: Option<usize>,
+    pub grid: Option<usize>,
+    /// CDLOD: first range as a multiple of the finest node's diagonal.
+    pub range: Option<f64>,
 }
 
 fn default_scheme() -> String {
@@ -217,8 +218,8 @@ impl Scene {
             }
         }
         Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
-        self.lod_scheme()?;
         crate::clipmap::region::check_n(self.lod.n).map_err(|r| self.bad("lod.n", r))?;
+        self.lod_config()?;
         let c = &self.camera;
         match (c.look_at, c.yaw, c.pitch) {
             (Some(t), None, None) => {
@@ -286,16 +287,86 @@ impl Scene {
         Effects::parse(&self.effects).map_err(|r| self.bad("effects", r))
     }
 
-    pub fn lod_scheme(&self) -> Result<LodScheme> {
-        LodScheme::parse(&self.lod.scheme).ok_or_else(|| {
-            self.bad(
-                "lod.scheme",
-                format!(
-                    "unknown scheme '{}' (available: {})",
-                    self.lod.scheme,
-                    LodScheme::NAMES.join(", ")
-                ),
-            )
+    /// The LOD scheme with its settings, checked.
+    pub fn lod_config(&self) -> Result<LodConfig> {
+        let l = &self.lod;
+        let morph = self.has_effect("morph");
+        let pow2 = |field: &str, v: usize, lo: usize, hi: usize| -> Result<usize> {
+            if v.is_power_of_two() && (lo..=hi).contains(&v) {
+                Ok(v)
+            } else {
+                Err(self.bad(
+                    field,
+                    format!("must be a power of two in {lo}..={hi}, got {v}"),
+                ))
+            }
+        };
+        let positive = |field: &str, v: Option<f64>, default: f64| -> Result<f64> {
+            match v {
+                None => Ok(default),
+                Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+                Some(x) => Err(self.bad(field, format!("must be finite and > 0, got {x}"))),
+            }
+        };
+        Ok(match l.scheme.as_str() {
+            "clipmap" => LodConfig::Clipmap(self.clipmap_config()),
+            "brute-force" => LodConfig::BruteForce,
+            "geomipmap" => {
+                let block = l.block.unwrap_or(33);
+                let cells = block
+                    .checked_sub(1)
+                    .filter(|c| c.is_power_of_two() && (4..=256).contains(c))
+                    .ok_or_else(|| {
+                        self.bad(
+                            "lod.block",
+                            format!("must be 2^k + 1 vertices with 5 <= block <= 257, got {block}"),
+                        )
+                    })?;
+                let distance = positive("lod.distance", l.distance, 500.0)?;
+                let mode = match l.mode.as_deref().unwrap_or("error") {
+                    "linear" => geomipmap::Mode::Linear { distance },
+                    "exponential" => geomipmap::Mode::Exponential { distance },
+                    "error" => geomipmap::Mode::Error {
+                        tau: positive("lod.tau", l.tau, 2.0)?,
+                    },
+                    m => {
+                        return Err(self.bad(
+                            "lod.mode",
+                            format!("unknown mode '{m}' (available: linear, exponential, error)"),
+                        ))
+                    }
+                };
+                LodConfig::GeoMipMap(geomipmap::Config { cells, mode, morph })
+            }
+            "roam" => LodConfig::Roam(roam::Config {
+                tau: positive("lod.tau", l.tau, 2.0)?,
+                max_triangles: match l.max_triangles {
+                    Some(0) => return Err(self.bad("lod.max_triangles", "must be > 0")),
+                    Some(m) => m,
+                    None => 1 << 20,
+                },
+            }),
+            "annulus" => LodConfig::Annulus(annulus::Config {
+                n: l.n,
+                rings: l.levels.unwrap_or(6).clamp(1, 24),
+            }),
+            "cdlod" => LodConfig::Cdlod(cdlod::Config {
+                grid: pow2("lod.grid", l.grid.unwrap_or(32), 4, 256)?,
+                range: match positive("lod.range", l.range, 2.0)? {
+                    r if r >= 1.0 => r,
+                    r => return Err(self.bad("lod.range", format!("must be >= 1, got {r}"))),
+                },
+                morph,
+            }),
+            s => {
+                return Err(self.bad(
+                    "lod.scheme",
+                    format!(
+                        "unknown scheme '{s}' (available: {})",
+                        LOD_SCHEMES.join(", ")
+                    ),
+                ))
+            }
         })
     }
 
@@ -351,10 +422,23 @@ impl Scene {
 
     /// A clipmap over `pyramid`, with errors naming this scene.
     pub fn new_clipmap(&self, pyramid: Arc<Pyramid>, cfg: ClipmapConfig) -> Result<Clipmap> {
-        Clipmap::new(pyramid, cfg).map_err(|e| match e {
+        Clipmap::new(pyramid, cfg).map_err(|e| self.named(e))
+    }
+
+    /// The scene's LOD scheme over `pyramid`, with errors naming this scene.
+    pub fn new_lod(
+        &self,
+        cfg: &LodConfig,
+        pyramid: Arc<Pyramid>,
+    ) -> Result<Box<dyn crate::lod::Lod>> {
+        cfg.build(pyramid).map_err(|e| self.named(e))
+    }
+
+    fn named(&self, e: Error) -> Error {
+        match e {
             Error::BadValue { field, reason } => self.bad(&field, reason),
             other => other,
-        })
+        }
     }
 
     /// Heightmap → pyramid → clipmap, updated for the scene's camera.

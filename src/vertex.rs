@@ -48,12 +48,14 @@ impl VertexUniforms {
     }
 
     /// Height fetch result → morphed, camera-relative position (metres).
+    /// The offset is 0 for on-grid vertices, and adding 0 is exact, so the
+    /// clipmap's positions are what its WGSL shader computes.
     #[inline]
     pub fn position(&self, v: &LodVertex) -> [f32; 3] {
         let zm = morph::blend(v.z, v.zc, v.alpha);
         [
-            (v.col - self.origin[0]) as f32 * self.cell[0],
-            (self.origin[1] - v.row) as f32 * self.cell[1],
+            ((v.col - self.origin[0]) as f32 + v.offset[0]) * self.cell[0],
+            ((self.origin[1] - v.row) as f32 - v.offset[1]) * self.cell[1],
             zm * self.vertical_scale,
         ]
     }

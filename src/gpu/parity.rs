@@ -112,7 +112,7 @@ fn draw_session(
     session: &Session,
     update: Option<&crate::clipmap::UpdateStats>,
 ) -> Result<Image> {
-    match (clip, &session.clipmap) {
+    match (clip, session.lod.clipmap()) {
         (Some(c), Some(cm)) => r.draw(
             frame,
             Some(ClipDraw {
@@ -184,8 +184,8 @@ pub fn check(
         if i > 0 {
             uploaded += r.texels_uploaded();
             full += gpu
-                .clipmap
-                .as_ref()
+                .lod
+                .clipmap()
                 .map_or(0, |cm| (cm.n() * cm.n()) as u64 * cm.levels().len() as u64);
         }
         let d = Difference::of(&want, &got);

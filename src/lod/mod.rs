@@ -1,12 +1,23 @@
-//! LOD schemes turn the terrain and a view into triangles. Each scheme hands
-//! the frame builder the same thing, a [`LodMesh`], so the back ends never
-//! see which scheme made it.
+//! LOD schemes turn the terrain and a view into triangles. Every scheme sits
+//! behind the one [`Lod`] trait and hands the frame builder the same thing, a
+//! [`LodMesh`], so the back ends never see which scheme made it and the
+//! metrics compare schemes on equal terms.
 
+pub mod annulus;
 pub mod brute_force;
+pub mod cdlod;
+pub mod clipmap;
+pub mod geomipmap;
+mod grid;
+pub mod roam;
 
-use crate::camera::Frustum;
-use crate::clipmap::{Clipmap, LevelMesh};
+use crate::camera::{Camera, Frustum};
+use crate::clipmap::{Clipmap, ClipmapConfig};
+use crate::error::Result;
+use crate::pyramid::Pyramid;
 use crate::world::WorldMap;
+use serde::Serialize;
+use std::sync::Arc;
 
 /// One vertex as the LOD scheme emits it: base-grid position, own height,
 /// the coarser surface's height there and the morph weight.
@@ -14,9 +25,28 @@ use crate::world::WorldMap;
 pub struct LodVertex {
     pub col: i64,
     pub row: i64,
+    /// Sub-texel offset added to (col, row), in base texels. Zero for
+    /// schemes on the grid; the annulus (unsnapped) and CDLOD (xy morph)
+    /// place vertices between grid points.
+    pub offset: [f32; 2],
     pub z: f32,
     pub zc: f32,
     pub alpha: f32,
+}
+
+impl LodVertex {
+    /// An unmorphed vertex on the grid.
+    #[inline]
+    pub fn on_grid(col: i64, row: i64, z: f32) -> Self {
+        LodVertex {
+            col,
+            row,
+            offset: [0.0; 2],
+            z,
+            zc: z,
+            alpha: 0.0,
+        }
+    }
 }
 
 /// Per-level constants the effects need (texture addressing).
@@ -44,38 +74,147 @@ impl LodMesh {
     pub fn triangle_count(&self) -> usize {
         self.levels.len()
     }
-}
 
-/// The clipmap's meshes for a view, culled to `frustum`.
-pub fn clipmap_mesh(cm: &Clipmap, frustum: &Frustum, world: &WorldMap) -> LodMesh {
-    from_level_meshes(cm, &cm.meshes(Some((frustum, world))))
-}
-
-/// Expands this frame's level meshes (kept for a GPU back end that draws
-/// them from its own textures) into the frame's triangles.
-pub fn from_level_meshes(cm: &Clipmap, meshes: &[LevelMesh]) -> LodMesh {
-    let mut out = LodMesh {
-        level_info: vec![None; cm.levels().len()],
-        ..Default::default()
-    };
-    for mesh in meshes {
-        let lv = &cm.levels()[mesh.level];
-        out.level_info[mesh.level] = Some(LevelInfo {
-            level: mesh.level,
-            origin: lv.regions.origin,
-            size: [cm.n() as usize; 2],
-            morph: lv.morph.enabled,
-        });
-        for t in cm.triangles(mesh) {
-            out.levels.push(mesh.level as u32);
-            out.vertices.extend(t.iter().map(|v| LodVertex {
-                col: v.x,
-                row: v.y,
-                z: v.z,
-                zc: v.zc,
-                alpha: v.alpha,
-            }));
+    /// An empty mesh whose triangles all use the base level's resources
+    /// (normals, lightmap) over the whole `w`×`h` map: what every scheme
+    /// but the clipmap draws with.
+    pub fn base_level(w: usize, h: usize) -> Self {
+        LodMesh {
+            level_info: vec![Some(LevelInfo {
+                level: 0,
+                origin: [0, 0],
+                size: [w, h],
+                morph: false,
+            })],
+            ..Default::default()
         }
     }
-    out
+
+    /// Appends the triangles `emit` makes for each item, made in parallel
+    /// and appended in item order (so the mesh is the same for any thread
+    /// count).
+    pub fn append_parallel<T: Sync>(
+        &mut self,
+        items: &[T],
+        emit: impl Fn(&T, &mut LodMesh) + Sync,
+    ) {
+        use rayon::prelude::*;
+        let parts: Vec<LodMesh> = items
+            .par_iter()
+            .map(|it| {
+                let mut m = LodMesh::default();
+                emit(it, &mut m);
+                m
+            })
+            .collect();
+        for p in parts {
+            self.vertices.extend(p.vertices);
+            self.levels.extend(p.levels);
+        }
+    }
+
+    /// Appends one triangle on the base level.
+    #[inline]
+    pub fn push(&mut self, t: [LodVertex; 3]) {
+        self.vertices.extend(t);
+        self.levels.push(0);
+    }
+}
+
+/// What a scheme sees of the view.
+pub struct View<'a> {
+    pub camera: &'a Camera,
+    pub frustum: &'a Frustum,
+    pub world: &'a WorldMap,
+    /// Image size in pixels (screen-space error thresholds need it).
+    pub viewport: [u32; 2],
+}
+
+impl View<'_> {
+    /// Pixels per unit of (size ÷ distance) at the image centre: a world
+    /// length e at distance d covers about `e · k / d` pixels.
+    pub fn pixel_scale(&self) -> f64 {
+        self.viewport[1] as f64 / (2.0 * (0.5 * self.camera.fov_y_deg.to_radians()).tan())
+    }
+}
+
+/// What one update changed, for `fly` and the statistics.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct LodUpdate {
+    /// Heightmap texels rewritten into the scheme's own storage (clipmap).
+    pub texels_updated: u64,
+    /// Structural changes: splits + merges (ROAM), blocks whose level
+    /// changed (GeoMipMapping), nodes selected (CDLOD).
+    pub changes: u64,
+}
+
+/// A terrain LOD scheme: state kept across frames (`update`) and the
+/// triangles for a view (`mesh`). The two are separate timed passes, so
+/// the trade-off report can split LOD cost into update and mesh generation.
+pub trait Lod: Send {
+    fn name(&self) -> &'static str;
+    /// Moves the scheme's state to the view.
+    fn update(&mut self, view: &View) -> LodUpdate;
+    /// The triangles for the view, culled to its frustum.
+    fn mesh(&mut self, view: &View) -> LodMesh;
+    /// The clipmap, for a back end that draws from its own toroidal copy.
+    fn clipmap(&self) -> Option<&Clipmap> {
+        None
+    }
+    /// The clipmap's level meshes and update from the last `mesh`/`update`.
+    fn take_clip_frame(&mut self) -> Option<clipmap::ClipFrame> {
+        None
+    }
+}
+
+/// A scheme and its settings, as a scene names them.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LodConfig {
+    Clipmap(ClipmapConfig),
+    BruteForce,
+    GeoMipMap(geomipmap::Config),
+    Roam(roam::Config),
+    Annulus(annulus::Config),
+    Cdlod(cdlod::Config),
+}
+
+impl LodConfig {
+    /// The scheme's name (as scenes and the CLI spell it).
+    pub fn name(&self) -> &'static str {
+        match self {
+            LodConfig::Clipmap(_) => "clipmap",
+            LodConfig::BruteForce => "brute-force",
+            LodConfig::GeoMipMap(_) => "geomipmap",
+            LodConfig::Roam(_) => "roam",
+            LodConfig::Annulus(_) => "annulus",
+            LodConfig::Cdlod(_) => "cdlod",
+        }
+    }
+
+    /// Pyramid levels the scheme reads (level 1 always exists where the map
+    /// allows, for the lightmap's and normal map's blends).
+    pub fn pyramid_levels(&self, w: usize, h: usize) -> usize {
+        match self {
+            LodConfig::Clipmap(c) => c
+                .levels
+                .unwrap_or_else(|| crate::clipmap::region::max_levels(w, h, c.n))
+                .max(1),
+            LodConfig::Annulus(c) => c.rings.max(2),
+            _ => 2,
+        }
+    }
+
+    /// The scheme over `pyramid`.
+    pub fn build(&self, pyramid: Arc<Pyramid>) -> Result<Box<dyn Lod>> {
+        Ok(match self {
+            LodConfig::Clipmap(c) => {
+                Box::new(clipmap::ClipmapLod::new(Clipmap::new(pyramid, c.clone())?))
+            }
+            LodConfig::BruteForce => Box::new(brute_force::BruteForce::new(pyramid)),
+            LodConfig::GeoMipMap(c) => Box::new(geomipmap::GeoMipMap::new(pyramid, *c)),
+            LodConfig::Roam(c) => Box::new(roam::Roam::new(pyramid, *c)),
+            LodConfig::Annulus(c) => Box::new(annulus::Annulus::new(pyramid, *c)),
+            LodConfig::Cdlod(c) => Box::new(cdlod::Cdlod::new(pyramid, *c)),
+        })
+    }
 }

@@ -1,0 +1,95 @@
+//! The geometry clipmap behind the [`Lod`] trait: the toroidal update is the
+//! "lod" pass, the level meshes (strips or footprints, culled) the "mesh"
+//! pass. The level meshes are kept for a GPU back end that draws them from
+//! its own textures.
+
+use super::{LevelInfo, Lod, LodMesh, LodUpdate, LodVertex, View};
+use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
+
+/// The clipmap state a frame was made from, for a back end that draws from
+/// its own copy of the toroidal levels.
+pub struct ClipFrame {
+    pub meshes: Vec<LevelMesh>,
+    pub update: UpdateStats,
+}
+
+pub struct ClipmapLod {
+    cm: Clipmap,
+    meshes: Vec<LevelMesh>,
+    update: UpdateStats,
+}
+
+impl ClipmapLod {
+    pub fn new(cm: Clipmap) -> Self {
+        ClipmapLod {
+            cm,
+            meshes: Vec::new(),
+            update: UpdateStats::default(),
+        }
+    }
+}
+
+impl Lod for ClipmapLod {
+    fn name(&self) -> &'static str {
+        "clipmap"
+    }
+
+    fn update(&mut self, view: &View) -> LodUpdate {
+        self.update = self.cm.update(view.world.to_grid(view.camera.eye));
+        LodUpdate {
+            texels_updated: self.update.texels_total,
+            changes: self
+                .update
+                .rects_per_level
+                .iter()
+                .map(|r| r.len() as u64)
+                .sum(),
+        }
+    }
+
+    fn mesh(&mut self, view: &View) -> LodMesh {
+        self.meshes = self.cm.meshes(Some((view.frustum, view.world)));
+        from_level_meshes(&self.cm, &self.meshes)
+    }
+
+    fn clipmap(&self) -> Option<&Clipmap> {
+        Some(&self.cm)
+    }
+
+    fn take_clip_frame(&mut self) -> Option<ClipFrame> {
+        Some(ClipFrame {
+            meshes: std::mem::take(&mut self.meshes),
+            update: std::mem::take(&mut self.update),
+        })
+    }
+}
+
+/// Expands this frame's level meshes (kept for a GPU back end that draws
+/// them from its own textures) into the frame's triangles.
+pub fn from_level_meshes(cm: &Clipmap, meshes: &[LevelMesh]) -> LodMesh {
+    let mut out = LodMesh {
+        level_info: vec![None; cm.levels().len()],
+        ..Default::default()
+    };
+    for mesh in meshes {
+        let lv = &cm.levels()[mesh.level];
+        out.level_info[mesh.level] = Some(LevelInfo {
+            level: mesh.level,
+            origin: lv.regions.origin,
+            size: [cm.n() as usize; 2],
+            morph: lv.morph.enabled,
+        });
+        for t in cm.triangles(mesh) {
+            out.levels.push(mesh.level as u32);
+            out.vertices.extend(t.iter().map(|v| LodVertex {
+                col: v.x,
+                row: v.y,
+                offset: [0.0; 2],
+                z: v.z,
+                zc: v.zc,
+                alpha: v.alpha,
+            }));
+        }
+    }
+    out
+}
