@@ -14,6 +14,7 @@
 
 pub mod camera;
 pub mod clipmap;
+pub mod cracks;
 pub mod diagram;
 pub mod error;
 pub mod frame;
@@ -22,6 +23,7 @@ pub mod golden;
 pub mod gpu;
 pub mod heightmap;
 pub mod lod;
+pub mod metrics;
 pub mod pyramid;
 pub mod raster;
 pub mod render;
@@ -29,6 +31,7 @@ pub mod scene;
 pub mod shade;
 pub mod stats;
 pub mod vertex;
+pub mod views;
 pub mod world;
 
 pub use error::{Error, Result};

@@ -137,6 +137,31 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Count crack pixels (background enclosed by terrain that brute force
+    /// covers) from random views, for one or more LOD schemes.
+    Cracks {
+        /// Scene file; the embedded default scene if omitted.
+        scene: Option<PathBuf>,
+        /// Random views above the terrain.
+        #[arg(long, default_value_t = 100)]
+        views: usize,
+        /// Scheme(s): NAME, clipmap/LAYOUT, a comma-separated list, or
+        /// "all"; the scene's own scheme if omitted.
+        #[arg(long)]
+        lod: Option<String>,
+        /// Image size WIDTHxHEIGHT.
+        #[arg(long, default_value = "160x100", value_parser = Overrides::parse_size)]
+        size: [u32; 2],
+        /// Exit non-zero if any crack pixel is found.
+        #[arg(long)]
+        strict: bool,
+        /// Write each scheme's worst view (and its brute-force reference)
+        /// as PNGs here.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Draw a top-down map of the clipmap levels and regions.
     Diagram {
         /// Scene file; the embedded default scene if omitted.
@@ -316,6 +341,77 @@ fn bench_cmd(
     Ok(())
 }
 
+/// A progress bar on stderr (drawn only when stderr is a terminal).
+fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len as u64);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta} left)")
+    {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// "all", a list, or the scene's own scheme.
+fn scheme_list(lod: &Option<String>, s: &Scene) -> Vec<String> {
+    match lod.as_deref() {
+        Some("all") => terraclip::cracks::ALL
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        Some(list) => list.split(',').map(|p| p.trim().to_string()).collect(),
+        None => vec![s.lod.scheme.clone()],
+    }
+}
+
+fn cracks_cmd(
+    scene: &Option<PathBuf>,
+    views: usize,
+    lod: &Option<String>,
+    size: [u32; 2],
+    strict: bool,
+    out: Option<&std::path::Path>,
+    json: bool,
+) -> anyhow::Result<()> {
+    if views == 0 {
+        anyhow::bail!("--views must be at least 1");
+    }
+    let s = load_scene(scene)?;
+    let schemes = scheme_list(lod, &s);
+    let bar = progress(views, "cracks");
+    let r = terraclip::cracks::survey(&s, &schemes, views, size, || bar.inc(1))?;
+    bar.finish_and_clear();
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
+        for c in &r.schemes {
+            if let Some((img, reference)) = &c.worst_images {
+                let name = c.lod.replace('/', "-");
+                let write = |suffix: &str, i: &render::Image| -> anyhow::Result<()> {
+                    let p = dir.join(format!("{name}-{suffix}.png"));
+                    Ok(terraclip::error::write_atomic(&p, &i.png()?)?)
+                };
+                write("worst", img)?;
+                write("brute-force", reference)?;
+            }
+        }
+    }
+    if json {
+        println!("{}", serde_json::to_value(&r)?);
+    } else {
+        for c in &r.schemes {
+            println!(
+                "{:<20} {:>7} crack px in {:>4} of {} views (worst view {}: {} px)",
+                c.lod, c.crack_pixels, c.views_with_cracks, r.views, c.worst_view, c.worst_pixels
+            );
+        }
+    }
+    if strict && r.crack_pixels > 0 {
+        anyhow::bail!("{} crack pixels found", r.crack_pixels);
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.cmd {
         Some(Cmd::Golden {
@@ -391,6 +487,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 );
             }
         }
+        Some(Cmd::Cracks {
+            scene,
+            views,
+            lod,
+            size,
+            strict,
+            out,
+            json,
+        }) => cracks_cmd(&scene, views, &lod, size, strict, out.as_deref(), json)?,
         Some(Cmd::Diagram {
             scene,
             out,

@@ -241,7 +241,43 @@ pub fn stats(
 /// Renders a scene on the CPU.
 pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats)> {
     let mut passes = Passes::default();
-    let frame = build_frame(scene, &mut passes)?;
-    let (image, raster) = draw(&frame, opts, &mut passes);
-    Ok((image, stats(&frame, "cpu", raster, passes)))
+    let mut session = Session::new(scene, &mut passes)?;
+    session.render(&scene.camera(), opts, passes)
+}
+
+impl Session {
+    /// Renders `camera`'s view on the CPU; the stats include `passes` so
+    /// far (terrain loading, for a one-off render).
+    pub fn render(
+        &mut self,
+        camera: &Camera,
+        opts: &RenderOptions,
+        mut passes: Passes,
+    ) -> Result<(Image, RenderStats)> {
+        let (frame, _) = self.frame(camera, &mut passes)?;
+        let (image, raster) = draw(&frame, opts, &mut passes);
+        Ok((image, stats(&frame, "cpu", raster, passes)))
+    }
+
+    /// Height of the base map at world point (x, y), nearest sample, in
+    /// world units (for placing cameras above the terrain).
+    pub fn ground(&self, x: f64, y: f64) -> f64 {
+        let g = self.world.to_grid(glam::DVec3::new(x, y, 0.0));
+        let z = self.pyramid.levels[0].get_clamped(g[0].round() as i64, g[1].round() as i64);
+        z as f64 * self.world.vertical_scale
+    }
+
+    /// World extent of the map: (min corner, max corner) with the heights'
+    /// range as z.
+    pub fn extent(&self) -> (glam::DVec3, glam::DVec3) {
+        let b = &self.pyramid.levels[0];
+        self.world.aabb(
+            0.0,
+            0.0,
+            (b.width - 1) as f64,
+            (b.height - 1) as f64,
+            b.min as f64,
+            b.max as f64,
+        )
+    }
 }

@@ -452,6 +452,33 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// This scene with another LOD scheme: "NAME" or "clipmap/LAYOUT"
+    /// (strips, footprints).
+    pub fn with_lod(&self, spec: &str) -> Result<Scene> {
+        let mut s = self.clone();
+        let (name, layout) = match spec.split_once('/') {
+            Some((n, l)) => (n, Some(l)),
+            None => (spec, None),
+        };
+        s.lod.scheme = name.to_string();
+        if let Some(l) = layout {
+            s.lod.layout = match l {
+                "strips" => Layout::Strips,
+                "footprints" => Layout::Footprints,
+                other => {
+                    return Err(self.bad(
+                        "lod.layout",
+                        format!("unknown layout '{other}' (available: strips, footprints)"),
+                    ))
+                }
+            };
+        }
+        s.validate()?;
+        Ok(s)
+    }
+}
+
 /// Command-line replacements for scene values (`render` and friends).
 #[derive(Clone, Debug, Default)]
 pub struct Overrides {

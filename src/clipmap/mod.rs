@@ -95,7 +95,13 @@ pub enum LevelGeometry {
         ring: Vec<[u32; 3]>,
     },
     /// Placed static footprints.
-    Footprints { instances: Vec<Instance> },
+    Footprints {
+        instances: Vec<Instance>,
+        /// In-map triangles (toroid indices) of blocks that cross the
+        /// usable map's edge: drawn like strips, so nothing is drawn
+        /// beyond the map (no shelf of edge heights, no curtains).
+        edge: Vec<[u32; 3]>,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -206,6 +212,15 @@ impl Clipmap {
     /// Usable map bounds (strips layout) in base vertices.
     pub fn map_bounds(&self) -> Option<Rect> {
         self.params.map
+    }
+
+    /// The usable map in level-`l` texels (the same rectangle on every
+    /// level, on grid lines of all of them). The footprint layout draws
+    /// only what lies inside it.
+    pub fn level_bounds(&self, l: usize) -> Rect {
+        let b = &self.pyramid.levels[0];
+        let m = region::map_bounds(b.width, b.height, self.levels.len());
+        Rect::new(m.x0 >> l, m.y0 >> l, m.x1 >> l, m.y1 >> l)
     }
 
     /// Moves every level to the viewer at base-grid position `viewer`,
@@ -415,7 +430,28 @@ impl Clipmap {
                     || (!off_map && cull::classify(f, lo, hi) != cull::Class::Outside)
             });
         }
-        LevelGeometry::Footprints { instances }
+        // Blocks crossing the map edge: their in-map triangles only. The
+        // bounds lie on grid lines of every level, so a cell is wholly in
+        // or out.
+        let b = self.level_bounds(l);
+        let n = self.n;
+        let inside = |x: i64, y: i64| x >= b.x0 && x <= b.x1 && y >= b.y0 && y <= b.y1;
+        let mut edge = Vec::new();
+        instances.retain(|i| {
+            let s = self.footprints.shape(i.shape);
+            let at = |v: [i32; 2]| (i.offset[0] + v[0] as i64, i.offset[1] + v[1] as i64);
+            if s.vertices.iter().all(|&v| inside(at(v).0, at(v).1)) {
+                return true;
+            }
+            for t in &s.triangles {
+                let p = t.map(|k| at(s.vertices[k as usize]));
+                if p.iter().all(|&(x, y)| inside(x, y)) {
+                    edge.push(p.map(|(x, y)| (y.rem_euclid(n) * n + x.rem_euclid(n)) as u32));
+                }
+            }
+            false
+        });
+        LevelGeometry::Footprints { instances, edge }
     }
 
     /// Expands a level mesh into triangles of morphed vertices, for the
@@ -439,7 +475,7 @@ impl Clipmap {
                 .chain(ring.iter().copied())
                 .map(|t| t.map(at))
                 .collect(),
-            LevelGeometry::Footprints { instances } => instances
+            LevelGeometry::Footprints { instances, edge } => instances
                 .iter()
                 .flat_map(|i| {
                     let shape = self.footprints.shape(i.shape);
@@ -450,6 +486,7 @@ impl Clipmap {
                         })
                     })
                 })
+                .chain(edge.iter().map(|t| t.map(at)))
                 .collect(),
         }
     }

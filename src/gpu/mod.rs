@@ -311,8 +311,9 @@ impl GpuRenderer {
                     t.i(&[m.enabled as i32, m.enabled as i32, 0, 0]);
                     t
                 };
-                let mut slot = |inst: [i32; 2], range: std::ops::Range<u32>| {
+                let mut slot = |mode: i32, inst: [i32; 2], range: std::ops::Range<u32>| {
                     let mut words = Words(base.0.clone());
+                    words.0[3] = mode as u32;
                     words.0.extend(tail(inst).0);
                     draws.push((words, range));
                 };
@@ -322,14 +323,22 @@ impl GpuRenderer {
                         for t in footprint::strip_to_triangles(strip).iter().chain(ring) {
                             strips.extend_from_slice(t);
                         }
-                        slot([0, 0], start..strips.len() as u32);
+                        slot(mode, [0, 0], start..strips.len() as u32);
                     }
-                    LevelGeometry::Footprints { instances } => {
+                    LevelGeometry::Footprints { instances, edge } => {
                         let ranges = &self.footprints.as_ref().expect("built").2;
                         for i in instances {
                             let (a, b) = ranges[&i.shape];
                             let off = [(i.offset[0] - o[0]) as i32, (i.offset[1] - o[1]) as i32];
-                            slot(off, a..b);
+                            slot(mode, off, a..b);
+                        }
+                        // Blocks crossing the map edge: pulled like strips.
+                        if !edge.is_empty() {
+                            let start = strips.len() as u32;
+                            for t in edge {
+                                strips.extend_from_slice(t);
+                            }
+                            slot(1, [0, 0], start..strips.len() as u32);
                         }
                     }
                 }

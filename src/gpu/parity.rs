@@ -7,7 +7,6 @@ use crate::error::{write_atomic, Result};
 use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
 use crate::scene::Scene;
 use crate::stats::Passes;
-use glam::DVec3;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -137,20 +136,7 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     Ok((image, stats))
 }
 
-/// A camera path: `frames` steps along the view direction's ground track
-/// and sideways, so levels scroll in both axes and the toroids wrap.
-pub fn path_camera(base: &Camera, i: usize, step: f64) -> Camera {
-    let d = base.target - base.eye;
-    let fwd = DVec3::new(d.x, d.y, 0.0).normalize_or(DVec3::X);
-    let side = DVec3::new(-fwd.y, fwd.x, 0.0);
-    let t = i as f64 * step;
-    let off = fwd * t + side * (0.37 * t);
-    Camera {
-        eye: base.eye + off,
-        target: base.target + off,
-        ..*base
-    }
-}
+pub use crate::views::path_camera;
 
 /// Renders `frames` views of the path on both back ends and compares each;
 /// the GPU's toroids are updated only by each frame's dirty rectangles.
