@@ -162,6 +162,25 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Error against brute force and time for every LOD scheme and
+    /// setting, on ATLOD's wide and low-FOV views: CSV, SVG and PNG chart.
+    Tradeoff {
+        /// Scene file; the embedded default scene if omitted.
+        scene: Option<PathBuf>,
+        #[arg(long, default_value = "target/tradeoff")]
+        out: PathBuf,
+        /// Image size WIDTHxHEIGHT.
+        #[arg(long, default_value = "320x180", value_parser = Overrides::parse_size)]
+        size: [u32; 2],
+        /// Frames along the popping path.
+        #[arg(long, default_value_t = 8)]
+        path_frames: usize,
+        /// Fewer settings per scheme.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long)]
+        json: bool,
+    },
     /// Draw a top-down map of the clipmap levels and regions.
     Diagram {
         /// Scene file; the embedded default scene if omitted.
@@ -412,6 +431,75 @@ fn cracks_cmd(
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)]
+fn tradeoff_cmd(
+    scene: &Option<PathBuf>,
+    out: &std::path::Path,
+    size: [u32; 2],
+    path_frames: usize,
+    quick: bool,
+    json: bool,
+) -> anyhow::Result<()> {
+    use terraclip::tradeoff;
+    if path_frames < 2 {
+        anyhow::bail!("--path-frames must be at least 2");
+    }
+    if size[0] == 0 || size[1] == 0 || size[0] > 2048 || size[1] > 2048 {
+        anyhow::bail!(
+            "--size must be within 1..=2048 per side (64× supersampling multiplies it by 8)"
+        );
+    }
+    let s = load_scene(scene)?;
+    let opts = tradeoff::Options {
+        size,
+        path_frames,
+        quick,
+    };
+    let count = tradeoff::settings(&s, quick)?.len();
+    let bar = progress(count, "tradeoff");
+    let report = tradeoff::run(&s, &opts, |label| {
+        bar.set_message(label.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let title = format!("{} at {}x{}", s.origin, size[0], size[1]);
+    tradeoff::write(&report, out, &title)?;
+    if json {
+        println!("{}", serde_json::to_value(&report)?);
+    } else {
+        println!(
+            "{:<12} {:<26} {:>9} {:>8} {:>4} {:>9} {:>10} {:>8}",
+            "lod", "config", "ms", "rmse", "max", "depth m", "triangles", "popping"
+        );
+        for r in &report.rows {
+            println!(
+                "{:<12} {:<26} {:>9.2} {:>8.3} {:>4} {:>9.2} {:>10.0} {:>8.3}{}",
+                r.lod,
+                r.config,
+                r.ms,
+                r.rmse,
+                r.max_abs,
+                r.depth_m,
+                r.triangles,
+                r.popping,
+                if r.pareto { "  *" } else { "" }
+            );
+        }
+        match &report.best_in_budget {
+            Some(b) => println!(
+                "within 1/10 of brute force ({:.2} ms): {} {} has the lowest RMSE, {:.3}",
+                report.budget_ms, b.lod, b.config, b.rmse
+            ),
+            None => println!(
+                "no setting ran within 1/10 of brute force ({:.2} ms)",
+                report.budget_ms
+            ),
+        }
+        println!("wrote {}/tradeoff.{{csv,svg,png}}", out.display());
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.cmd {
         Some(Cmd::Golden {
@@ -496,6 +584,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             json,
         }) => cracks_cmd(&scene, views, &lod, size, strict, out.as_deref(), json)?,
+        Some(Cmd::Tradeoff {
+            scene,
+            out,
+            size,
+            path_frames,
+            quick,
+            json,
+        }) => tradeoff_cmd(&scene, &out, size, path_frames, quick, json)?,
         Some(Cmd::Diagram {
             scene,
             out,

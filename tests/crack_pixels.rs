@@ -69,9 +69,20 @@ fn the_detector_sees_annulus_and_unmorphed_cracks() {
     let r = run(true, &["annulus"], 40);
     println!("annulus: {} crack px in 40 views", r.crack_pixels);
     assert!(r.crack_pixels > 0, "the annulus's T-junctions went unseen");
-    let r = run(false, &["clipmap/strips", "clipmap/footprints", "cdlod"], 40);
+    let r = run(
+        false,
+        &["clipmap/strips", "clipmap/footprints", "cdlod"],
+        40,
+    );
     for s in &r.schemes {
-        println!("{}, morph off: {} crack px in 40 views", s.lod, s.crack_pixels);
-        assert!(s.crack_pixels > 0, "{}: no cracks found with morph off", s.lod);
+        println!(
+            "{}, morph off: {} crack px in 40 views",
+            s.lod, s.crack_pixels
+        );
+        assert!(
+            s.crack_pixels > 0,
+            "{}: no cracks found with morph off",
+            s.lod
+        );
     }
 }

@@ -1,0 +1,517 @@
+//! What accuracy costs in time: every LOD scheme, over several settings,
+//! rendered on the same views by the same rasteriser and compared with the
+//! brute-force render of each view (colour RMSE and largest difference as
+//! ATLOD measured, depth error in metres), with the frame time split into
+//! LOD update, mesh generation, vertex work, raster and shading, and the
+//! popping along a short camera path. The rasteriser's own accuracy knob,
+//! supersampling, is measured the same way against a 64× render of the
+//! same mesh.
+
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::metrics::{self, ImageError};
+use crate::render::{Image, RenderOptions, RenderStats, Session};
+use crate::scene::Scene;
+use crate::stats::Passes;
+use crate::views::{self, NamedView};
+use serde::Serialize;
+
+/// One scheme at one setting.
+#[derive(Clone, Debug)]
+pub struct Setting {
+    /// Series name: the scheme, or "supersample".
+    pub lod: String,
+    /// The setting, human readable ("n=63 strips", "tau=4px").
+    pub config: String,
+    pub scene: Scene,
+    /// Samples per pixel (1, 4, 16); the reference is then a 64× render
+    /// of the same setting instead of brute force.
+    pub samples: u32,
+}
+
+/// One row of the report (the JSON `rows`).
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub lod: String,
+    pub config: String,
+    /// Mean frame time over the views (ms), and its parts.
+    pub ms: f64,
+    pub ms_lod: f64,
+    pub ms_mesh: f64,
+    pub ms_vertex: f64,
+    pub ms_raster: f64,
+    pub ms_shade: f64,
+    /// Mean RMSE over all views, the wide views and the low-FOV views.
+    pub rmse: f64,
+    pub rmse_wide: f64,
+    pub rmse_low_fov: f64,
+    pub max_abs: u8,
+    pub depth_m: f64,
+    /// Mean triangles drawn per view.
+    pub triangles: f64,
+    /// Largest per-frame popping along the path (RMS, 0–255 units).
+    pub popping: f64,
+    /// "brute-force" or "64x same mesh".
+    pub reference: &'static str,
+    /// On the Pareto front of (ms, rmse) among brute-force-referenced rows.
+    pub pareto: bool,
+}
+
+/// The report: rows, and the answer to "within 1/10 of brute force's time,
+/// which scheme has the lowest RMSE?".
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub views: Vec<String>,
+    pub size: [u32; 2],
+    pub path_frames: usize,
+    pub rows: Vec<Row>,
+    pub budget_ms: f64,
+    pub best_in_budget: Option<Row>,
+}
+
+/// How much to measure.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    pub size: [u32; 2],
+    /// Frames along the popping path.
+    pub path_frames: usize,
+    /// Fewer settings per scheme (for tests).
+    pub quick: bool,
+}
+
+fn variant(scene: &Scene, lod: &str, edit: impl FnOnce(&mut Scene)) -> Result<Scene> {
+    let mut s = scene.with_lod(lod)?;
+    edit(&mut s);
+    s.validate()?;
+    Ok(s)
+}
+
+/// The sweep: every scheme at several settings (fewer when `quick`).
+pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
+    let mut out = Vec::new();
+    let mut add = |lod: &str, config: String, s: Scene, samples: u32| {
+        out.push(Setting {
+            lod: lod.to_string(),
+            config,
+            scene: s,
+            samples,
+        })
+    };
+    let morph = |s: &mut Scene, on: bool| {
+        s.effects.retain(|e| e != "morph");
+        if on {
+            s.effects.push("morph".into());
+        }
+    };
+    add(
+        "brute-force",
+        "full".into(),
+        scene.with_lod("brute-force")?,
+        1,
+    );
+    let ns: &[i64] = if quick { &[15, 31] } else { &[15, 31, 63, 127] };
+    for &n in ns {
+        let s = variant(scene, "clipmap/strips", |s| {
+            s.lod.n = n;
+            s.lod.levels = None;
+            morph(s, true);
+        })?;
+        add("clipmap", format!("n={n} strips"), s, 1);
+    }
+    let n = if quick { 15 } else { 31 };
+    add(
+        "clipmap",
+        format!("n={n} footprints"),
+        variant(scene, "clipmap/footprints", |s| {
+            s.lod.n = n;
+            morph(s, true);
+        })?,
+        1,
+    );
+    add(
+        "clipmap",
+        format!("n={n} morph off"),
+        variant(scene, "clipmap/strips", |s| {
+            s.lod.n = n;
+            morph(s, false);
+        })?,
+        1,
+    );
+    if !quick {
+        for f in ["point", "box"] {
+            add(
+                "clipmap",
+                format!("n={n} {f} filter"),
+                variant(scene, "clipmap/strips", |s| {
+                    s.lod.n = n;
+                    s.pyramid.filter = f.into();
+                    morph(s, true);
+                })?,
+                1,
+            );
+        }
+        for w in [1.0f32, 8.0] {
+            add(
+                "clipmap",
+                format!("n={n} w={w}"),
+                variant(scene, "clipmap/strips", |s| {
+                    s.lod.n = n;
+                    s.lod.transition = Some(w);
+                    morph(s, true);
+                })?,
+                1,
+            );
+        }
+    }
+    let taus: &[f64] = if quick {
+        &[2.0, 8.0]
+    } else {
+        &[0.5, 1.0, 2.0, 4.0, 8.0, 16.0]
+    };
+    for &tau in taus {
+        add(
+            "geomipmap",
+            format!("error tau={tau}px"),
+            variant(scene, "geomipmap", |s| {
+                s.lod.mode = Some("error".into());
+                s.lod.tau = Some(tau);
+                morph(s, true);
+            })?,
+            1,
+        );
+        add(
+            "roam",
+            format!("tau={tau}px"),
+            variant(scene, "roam", |s| s.lod.tau = Some(tau))?,
+            1,
+        );
+    }
+    if !quick {
+        // ATLOD's distance modes, at steps of a few blocks.
+        let cell = scene.terrain.cell_size.as_ref().map_or(10.0, |c| match c {
+            crate::scene::CellSize::Square(s) => *s,
+            crate::scene::CellSize::Xy(xy) => xy[0].max(xy[1]),
+        });
+        for mode in ["linear", "exponential"] {
+            for blocks in [2.0, 8.0] {
+                let d = blocks * 32.0 * cell;
+                add(
+                    "geomipmap",
+                    format!("{mode} d={d:.0}m"),
+                    variant(scene, "geomipmap", |s| {
+                        s.lod.mode = Some(mode.into());
+                        s.lod.distance = Some(d);
+                        morph(s, true);
+                    })?,
+                    1,
+                );
+            }
+        }
+    }
+    let ranges: &[f64] = if quick { &[2.0] } else { &[1.0, 2.0, 4.0, 8.0] };
+    for &r in ranges {
+        add(
+            "cdlod",
+            format!("grid=32 range={r}"),
+            variant(scene, "cdlod", |s| {
+                s.lod.grid = Some(32);
+                s.lod.range = Some(r);
+                morph(s, true);
+            })?,
+            1,
+        );
+    }
+    let an: &[i64] = if quick { &[31] } else { &[31, 63, 127, 255] };
+    for &n in an {
+        add(
+            "annulus",
+            format!("n={n}"),
+            variant(scene, "annulus", |s| {
+                s.lod.n = n;
+                s.lod.levels = Some(12);
+            })?,
+            1,
+        );
+    }
+    let ss = variant(scene, "clipmap/strips", |s| {
+        s.lod.n = 31;
+        s.lod.levels = None;
+        morph(s, true);
+    })?;
+    for k in [1u32, 4, 16] {
+        add("supersample", format!("{k}x (clipmap n=31)"), ss.clone(), k);
+    }
+    Ok(out)
+}
+
+/// Per-axis factor of `samples` per pixel (1, 4, 16, 64).
+fn axis(samples: u32) -> u32 {
+    (samples as f64).sqrt().round() as u32
+}
+
+/// Renders `cam` in `session` (made at `samples`× the pixels) and boxes it
+/// down to the target size.
+fn shot(session: &mut Session, cam: &Camera, samples: u32) -> Result<(Image, RenderStats)> {
+    let (img, stats) = session.render(cam, &RenderOptions::default(), Passes::default())?;
+    let k = axis(samples);
+    Ok((
+        if k > 1 {
+            metrics::downsample(&img, k)
+        } else {
+            img
+        },
+        stats,
+    ))
+}
+
+fn session_for(scene: &Scene, size: [u32; 2], samples: u32) -> Result<Session> {
+    let mut s = scene.clone();
+    let k = axis(samples);
+    s.image.width = size[0] * k;
+    s.image.height = size[1] * k;
+    Session::new(&s, &mut Passes::default())
+}
+
+fn pass_ms(stats: &RenderStats, names: &[&str]) -> f64 {
+    stats
+        .passes
+        .iter()
+        .filter(|p| names.contains(&p.name.as_str()))
+        .map(|p| p.ms)
+        .sum()
+}
+
+/// Measures every setting; `tick(label)` is called after each.
+pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<Report> {
+    let settings = settings(scene, opts.quick)?;
+    let mut probe = session_for(&settings[0].scene, opts.size, 1)?;
+    let mut template = settings[0].scene.camera();
+    template.aspect = opts.size[0] as f64 / opts.size[1] as f64;
+    let views: Vec<NamedView> = views::atlod_views(&probe, &template);
+    let cell = probe.world.cell[0].max(probe.world.cell[1]);
+    let path = views::path(&views[0].camera, opts.path_frames.max(2), 0.5 * cell);
+    // References: brute force per view and along the path.
+    let mut bf_views = Vec::new();
+    for v in &views {
+        bf_views.push(shot(&mut probe, &v.camera, 1)?.0);
+    }
+    let mut bf_path = Vec::new();
+    for c in &path {
+        bf_path.push(shot(&mut probe, c, 1)?.0);
+    }
+    drop(probe);
+    let mut rows = Vec::new();
+    for st in &settings {
+        let mut session = session_for(&st.scene, opts.size, st.samples)?;
+        let mut reference_session = if st.samples > 1 || st.lod == "supersample" {
+            Some(session_for(&st.scene, opts.size, 64)?)
+        } else {
+            None
+        };
+        let mut errs: Vec<(ImageError, &'static str)> = Vec::new();
+        let (mut ms, mut parts, mut tris) = (0.0, [0.0f64; 5], 0.0);
+        for (i, v) in views.iter().enumerate() {
+            // A warm-up frame one step back, so incremental schemes pay
+            // their steady-state update, not a rebuild.
+            let back = views::path_camera(&v.camera, 1, -0.5 * cell);
+            shot(&mut session, &back, st.samples)?;
+            let (img, stats) = shot(&mut session, &v.camera, st.samples)?;
+            let reference = match &mut reference_session {
+                Some(r) => shot(r, &v.camera, 64)?.0,
+                None => bf_views[i].clone(),
+            };
+            errs.push((metrics::image_error(&img, &reference, &v.camera), v.kind));
+            ms += stats.ms_total;
+            parts[0] += pass_ms(&stats, &["lod"]);
+            parts[1] += pass_ms(&stats, &["mesh"]);
+            parts[2] += pass_ms(&stats, &["vertex", "normals", "normal-map", "lightmap"]);
+            parts[3] += pass_ms(&stats, &["raster"]);
+            parts[4] += pass_ms(&stats, &["shade"]);
+            tris += stats.triangles as f64;
+        }
+        // Popping along the path (brute-force referenced settings only).
+        let mut popping = 0.0f64;
+        if reference_session.is_none() {
+            let mut prev: Option<Image> = None;
+            for (k, c) in path.iter().enumerate() {
+                let (img, _) = shot(&mut session, c, 1)?;
+                if let Some(p) = &prev {
+                    popping =
+                        popping.max(metrics::popping([p, &img], [&bf_path[k - 1], &bf_path[k]]));
+                }
+                prev = Some(img);
+            }
+        }
+        let nv = views.len() as f64;
+        let mean = |kind: Option<&str>| {
+            let sel: Vec<f64> = errs
+                .iter()
+                .filter(|(_, k)| kind.is_none_or(|want| *k == want))
+                .map(|(e, _)| e.rmse)
+                .collect();
+            sel.iter().sum::<f64>() / sel.len().max(1) as f64
+        };
+        rows.push(Row {
+            lod: st.lod.clone(),
+            config: st.config.clone(),
+            ms: ms / nv,
+            ms_lod: parts[0] / nv,
+            ms_mesh: parts[1] / nv,
+            ms_vertex: parts[2] / nv,
+            ms_raster: parts[3] / nv,
+            ms_shade: parts[4] / nv,
+            rmse: mean(None),
+            rmse_wide: mean(Some("wide")),
+            rmse_low_fov: mean(Some("low-fov")),
+            max_abs: errs.iter().map(|(e, _)| e.max_abs).max().unwrap_or(0),
+            depth_m: errs.iter().map(|(e, _)| e.depth_m).sum::<f64>() / nv,
+            triangles: tris / nv,
+            popping,
+            reference: if reference_session.is_some() {
+                "64x same mesh"
+            } else {
+                "brute-force"
+            },
+            pareto: false,
+        });
+        tick(&format!("{} {}", st.lod, st.config));
+    }
+    mark_pareto(&mut rows);
+    let budget_ms = rows
+        .iter()
+        .find(|r| r.lod == "brute-force")
+        .map_or(0.0, |r| r.ms / 10.0);
+    let best_in_budget = rows
+        .iter()
+        .filter(|r| r.reference == "brute-force" && r.lod != "brute-force" && r.ms <= budget_ms)
+        .min_by(|a, b| a.rmse.total_cmp(&b.rmse))
+        .cloned();
+    Ok(Report {
+        views: views.iter().map(|v| v.name.clone()).collect(),
+        size: opts.size,
+        path_frames: path.len(),
+        rows,
+        budget_ms,
+        best_in_budget,
+    })
+}
+
+/// Marks the rows no other brute-force-referenced row beats in both time
+/// and RMSE.
+pub fn mark_pareto(rows: &mut [Row]) {
+    let pts: Vec<(f64, f64, bool)> = rows
+        .iter()
+        .map(|r| (r.ms, r.rmse, r.reference == "brute-force"))
+        .collect();
+    for (i, r) in rows.iter_mut().enumerate() {
+        let (ms, e, eligible) = pts[i];
+        r.pareto = eligible
+            && !pts.iter().enumerate().any(|(j, &(m2, e2, ok))| {
+                j != i && ok && m2 <= ms && e2 <= e && (m2 < ms || e2 < e)
+            });
+    }
+}
+
+/// The rows as CSV.
+pub fn csv(rows: &[Row]) -> String {
+    let mut out = String::from(
+        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto\n",
+    );
+    for r in rows {
+        out += &format!(
+            "{},\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4},{},{:.3},{:.0},{:.4},{},{}\n",
+            r.lod,
+            r.config,
+            r.ms,
+            r.ms_lod,
+            r.ms_mesh,
+            r.ms_vertex,
+            r.ms_raster,
+            r.ms_shade,
+            r.rmse,
+            r.rmse_wide,
+            r.rmse_low_fov,
+            r.max_abs,
+            r.depth_m,
+            r.triangles,
+            r.popping,
+            r.reference,
+            r.pareto
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(ms: f64, rmse: f64) -> Row {
+        Row {
+            lod: "x".into(),
+            config: String::new(),
+            ms,
+            ms_lod: 0.0,
+            ms_mesh: 0.0,
+            ms_vertex: 0.0,
+            ms_raster: 0.0,
+            ms_shade: 0.0,
+            rmse,
+            rmse_wide: 0.0,
+            rmse_low_fov: 0.0,
+            max_abs: 0,
+            depth_m: 0.0,
+            triangles: 0.0,
+            popping: 0.0,
+            reference: "brute-force",
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_rows() {
+        let mut rows = vec![row(1.0, 5.0), row(2.0, 3.0), row(3.0, 4.0), row(4.0, 0.0)];
+        mark_pareto(&mut rows);
+        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(front, [true, true, false, true]);
+    }
+}
+
+/// Error against time, one series per scheme, the Pareto front marked.
+pub fn chart(report: &Report, title: &str) -> crate::report::chart::Chart {
+    use crate::report::chart::{Chart, Series};
+    let mut series: Vec<Series> = Vec::new();
+    for r in &report.rows {
+        match series.iter_mut().find(|s| s.name == r.lod) {
+            Some(s) => s.points.push((r.ms, r.rmse)),
+            None => series.push(Series {
+                name: r.lod.clone(),
+                points: vec![(r.ms, r.rmse)],
+            }),
+        }
+    }
+    let mut front: Vec<(f64, f64)> = report
+        .rows
+        .iter()
+        .filter(|r| r.pareto)
+        .map(|r| (r.ms, r.rmse))
+        .collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    Chart {
+        title: title.to_string(),
+        x_label: "ms per frame (log)".into(),
+        y_label: "RMSE vs reference (8-bit)".into(),
+        series,
+        front,
+    }
+}
+
+/// Writes `tradeoff.csv`, `.svg` and `.png` into `dir` (each atomically).
+pub fn write(report: &Report, dir: &std::path::Path, title: &str) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
+    let c = chart(report, title);
+    crate::error::write_atomic(&dir.join("tradeoff.csv"), csv(&report.rows).as_bytes())?;
+    crate::error::write_atomic(&dir.join("tradeoff.svg"), c.svg().as_bytes())?;
+    crate::error::write_atomic(&dir.join("tradeoff.png"), &c.png()?)?;
+    Ok(())
+}
