@@ -442,41 +442,6 @@ pub fn csv(rows: &[Row]) -> String {
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn row(ms: f64, rmse: f64) -> Row {
-        Row {
-            lod: "x".into(),
-            config: String::new(),
-            ms,
-            ms_lod: 0.0,
-            ms_mesh: 0.0,
-            ms_vertex: 0.0,
-            ms_raster: 0.0,
-            ms_shade: 0.0,
-            rmse,
-            rmse_wide: 0.0,
-            rmse_low_fov: 0.0,
-            max_abs: 0,
-            depth_m: 0.0,
-            triangles: 0.0,
-            popping: 0.0,
-            reference: "brute-force",
-            pareto: false,
-        }
-    }
-
-    #[test]
-    fn pareto_front_keeps_only_undominated_rows() {
-        let mut rows = vec![row(1.0, 5.0), row(2.0, 3.0), row(3.0, 4.0), row(4.0, 0.0)];
-        mark_pareto(&mut rows);
-        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
-        assert_eq!(front, [true, true, false, true]);
-    }
-}
-
 /// Error against time, one series per scheme, the Pareto front marked.
 pub fn chart(report: &Report, title: &str) -> crate::report::chart::Chart {
     use crate::report::chart::{Chart, Series};
@@ -514,4 +479,39 @@ pub fn write(report: &Report, dir: &std::path::Path, title: &str) -> Result<()> 
     crate::error::write_atomic(&dir.join("tradeoff.svg"), c.svg().as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff.png"), &c.png()?)?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(ms: f64, rmse: f64) -> Row {
+        Row {
+            lod: "x".into(),
+            config: String::new(),
+            ms,
+            ms_lod: 0.0,
+            ms_mesh: 0.0,
+            ms_vertex: 0.0,
+            ms_raster: 0.0,
+            ms_shade: 0.0,
+            rmse,
+            rmse_wide: 0.0,
+            rmse_low_fov: 0.0,
+            max_abs: 0,
+            depth_m: 0.0,
+            triangles: 0.0,
+            popping: 0.0,
+            reference: "brute-force",
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn pareto_front_keeps_only_undominated_rows() {
+        let mut rows = vec![row(1.0, 5.0), row(2.0, 3.0), row(3.0, 4.0), row(4.0, 0.0)];
+        mark_pareto(&mut rows);
+        let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
+        assert_eq!(front, [true, true, false, true]);
+    }
 }
