@@ -17,6 +17,7 @@ pub mod clipmap;
 pub mod cracks;
 pub mod diagram;
 pub mod error;
+pub mod fly;
 pub mod frame;
 pub mod golden;
 #[cfg(feature = "gpu")]

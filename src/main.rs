@@ -169,15 +169,39 @@ enum Cmd {
         scene: Option<PathBuf>,
         #[arg(long, default_value = "target/tradeoff")]
         out: PathBuf,
-        /// Image size WIDTHxHEIGHT.
-        #[arg(long, default_value = "320x180", value_parser = Overrides::parse_size)]
-        size: [u32; 2],
+        /// Scene overrides (--size defaults to 320x180 here).
+        #[command(flatten)]
+        args: SceneArgs,
         /// Frames along the popping path.
         #[arg(long, default_value_t = 8)]
         path_frames: usize,
         /// Fewer settings per scheme.
         #[arg(long)]
         quick: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Fly a straight camera path: frames as PNGs (and a GIF), per-frame
+    /// update statistics and popping against brute force.
+    Fly {
+        /// Scene file; the embedded default scene if omitted.
+        scene: Option<PathBuf>,
+        #[arg(long, default_value_t = 60)]
+        frames: usize,
+        /// Metres per frame (forward, plus 0.37× sideways).
+        #[arg(long, default_value_t = 5.0)]
+        step: f64,
+        /// Where frame_NNNN.png go; no images if omitted.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Also write OUT/fly.gif.
+        #[arg(long)]
+        gif: bool,
+        /// Skip the brute-force renders popping needs.
+        #[arg(long)]
+        no_popping: bool,
+        #[command(flatten)]
+        args: SceneArgs,
         #[arg(long)]
         json: bool,
     },
@@ -435,7 +459,7 @@ fn cracks_cmd(
 fn tradeoff_cmd(
     scene: &Option<PathBuf>,
     out: &std::path::Path,
-    size: [u32; 2],
+    args: &SceneArgs,
     path_frames: usize,
     quick: bool,
     json: bool,
@@ -444,12 +468,14 @@ fn tradeoff_cmd(
     if path_frames < 2 {
         anyhow::bail!("--path-frames must be at least 2");
     }
+    let size = args.size.unwrap_or([320, 180]);
     if size[0] == 0 || size[1] == 0 || size[0] > 2048 || size[1] > 2048 {
         anyhow::bail!(
             "--size must be within 1..=2048 per side (64× supersampling multiplies it by 8)"
         );
     }
-    let s = load_scene(scene)?;
+    let mut s = load_scene(scene)?;
+    s.apply(&args.overrides())?;
     let opts = tradeoff::Options {
         size,
         path_frames,
@@ -462,7 +488,10 @@ fn tradeoff_cmd(
         bar.inc(1);
     })?;
     bar.finish_and_clear();
-    let title = format!("{} at {}x{}", s.origin, size[0], size[1]);
+    let title = match &args.heightmap {
+        Some(h) => format!("{} at {}x{}", h.display(), size[0], size[1]),
+        None => format!("{} at {}x{}", s.origin, size[0], size[1]),
+    };
     tradeoff::write(&report, out, &title)?;
     if json {
         println!("{}", serde_json::to_value(&report)?);
@@ -496,6 +525,62 @@ fn tradeoff_cmd(
             ),
         }
         println!("wrote {}/tradeoff.{{csv,svg,png}}", out.display());
+    }
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fly_cmd(
+    scene: &Option<PathBuf>,
+    frames: usize,
+    step: f64,
+    out: Option<&std::path::Path>,
+    gif: bool,
+    no_popping: bool,
+    args: &SceneArgs,
+    json: bool,
+) -> anyhow::Result<()> {
+    if frames == 0 || frames > 100_000 {
+        anyhow::bail!("--frames must be within 1..=100000, got {frames}");
+    }
+    if !step.is_finite() {
+        anyhow::bail!("--step must be finite");
+    }
+    if gif && out.is_none() {
+        anyhow::bail!("--gif needs --out DIR");
+    }
+    let mut s = load_scene(scene)?;
+    s.apply(&args.overrides())?;
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
+    }
+    let bar = progress(frames, "fly");
+    let mut kept = Vec::new();
+    let report = terraclip::fly::fly(&s, frames, step, !no_popping, |i, img| {
+        bar.inc(1);
+        if let Some(dir) = out {
+            terraclip::error::write_atomic(&dir.join(format!("frame_{i:04}.png")), &img.png()?)?;
+            if gif {
+                kept.push(img.clone());
+            }
+        }
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    if let (Some(dir), true) = (out, gif) {
+        terraclip::error::write_atomic(&dir.join("fly.gif"), &terraclip::fly::gif(&kept)?)?;
+    }
+    if json {
+        println!("{}", serde_json::to_value(&report)?);
+    } else {
+        println!(
+            "{} frames of {}: mean update {:.3} ms, {} texels rewritten, popping max {:.3}",
+            report.frames.len(),
+            report.lod,
+            report.mean_update_ms,
+            report.texels_updated,
+            report.popping_max
+        );
     }
     Ok(())
 }
@@ -587,11 +672,30 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Tradeoff {
             scene,
             out,
-            size,
+            args,
             path_frames,
             quick,
             json,
-        }) => tradeoff_cmd(&scene, &out, size, path_frames, quick, json)?,
+        }) => tradeoff_cmd(&scene, &out, &args, path_frames, quick, json)?,
+        Some(Cmd::Fly {
+            scene,
+            frames,
+            step,
+            out,
+            gif,
+            no_popping,
+            args,
+            json,
+        }) => fly_cmd(
+            &scene,
+            frames,
+            step,
+            out.as_deref(),
+            gif,
+            no_popping,
+            &args,
+            json,
+        )?,
         Some(Cmd::Diagram {
             scene,
             out,

@@ -59,6 +59,14 @@ pub fn random_views(session: &Session, template: &Camera, count: usize, seed: u6
 pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
     let (lo, hi) = session.extent();
     let size = hi - lo;
+    // The far plane reaches across the whole map (a continent-sized DEM
+    // needs more than a scene's default).
+    let far = template.far.max(2.0 * size.length());
+    let template = &Camera {
+        far,
+        near: template.near.max(far * 1e-6),
+        ..*template
+    };
     let relief = size.z.max(0.02 * size.x.min(size.y));
     let at = |fx: f64, fy: f64, up: f64| {
         let (x, y) = (lo.x + size.x * fx, lo.y + size.y * fy);

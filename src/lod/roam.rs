@@ -24,6 +24,7 @@ use std::sync::Arc;
 pub struct Config {
     /// Split while a triangle's error covers more than τ pixels.
     pub tau: f64,
+    /// Triangle budget (may be overshot by one chain of forced splits).
     pub max_triangles: usize,
 }
 
@@ -452,7 +453,8 @@ impl Lod for Roam {
             })
             .collect();
         while let Some(Entry(_, i)) = splits.pop() {
-            if self.leaves + 4 > self.cfg.max_triangles {
+            // The budget may be overshot by one chain of forced splits.
+            if self.leaves >= self.cfg.max_triangles {
                 break;
             }
             if !self.tris[i as usize].alive || !self.is_leaf(i) {

@@ -1,0 +1,124 @@
+//! A camera path through a scene: each frame's LOD update statistics
+//! (texels rewritten, update and mesh time), and popping against a
+//! brute-force render of the same path.
+
+use crate::error::{Error, Result};
+use crate::metrics;
+use crate::render::{Image, RenderOptions, Session};
+use crate::scene::Scene;
+use crate::stats::Passes;
+use crate::views;
+use serde::Serialize;
+
+#[derive(Clone, Debug, Serialize)]
+pub struct FlyFrame {
+    pub frame: usize,
+    /// Whole frame on the CPU (ms), and the LOD update and mesh passes.
+    pub ms: f64,
+    pub update_ms: f64,
+    pub mesh_ms: f64,
+    pub texels_updated: u64,
+    pub changes: u64,
+    pub triangles: usize,
+    /// Against the previous frame (metrics::popping); 0 for the first
+    /// frame, for brute force itself and with popping off.
+    pub popping: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct FlyReport {
+    pub lod: String,
+    pub frames: Vec<FlyFrame>,
+    /// Mean update time over frames after the first (the first builds).
+    pub mean_update_ms: f64,
+    /// Texels rewritten over frames after the first.
+    pub texels_updated: u64,
+    pub popping_max: f64,
+}
+
+/// Flies `frames` frames from the scene's camera, `step` metres per frame
+/// (views::path). `each` gets every frame's image.
+pub fn fly(
+    scene: &Scene,
+    frames: usize,
+    step: f64,
+    popping: bool,
+    mut each: impl FnMut(usize, &Image) -> Result<()>,
+) -> Result<FlyReport> {
+    let opts = RenderOptions::default();
+    let mut session = Session::new(scene, &mut Passes::default())?;
+    let mut brute = if popping && scene.lod.scheme != "brute-force" {
+        Some(Session::new(
+            &scene.with_lod("brute-force")?,
+            &mut Passes::default(),
+        )?)
+    } else {
+        None
+    };
+    let mut out = Vec::new();
+    let mut prev: Option<(Image, Option<Image>)> = None;
+    for (i, cam) in views::path(&scene.camera(), frames, step)
+        .iter()
+        .enumerate()
+    {
+        let (img, stats) = session.render(cam, &opts, Passes::default())?;
+        let reference = match &mut brute {
+            Some(b) => Some(b.render(cam, &opts, Passes::default())?.0),
+            None => None,
+        };
+        // Brute force cannot pop against itself; without references there
+        // is nothing to measure.
+        let pop = match (&prev, &reference) {
+            (Some((p, Some(pr))), Some(r)) => metrics::popping([p, &img], [pr, r]),
+            _ => 0.0,
+        };
+        let ms = |n: &str| {
+            stats
+                .passes
+                .iter()
+                .filter(|p| p.name == n)
+                .map(|p| p.ms)
+                .sum()
+        };
+        out.push(FlyFrame {
+            frame: i,
+            ms: stats.ms_total,
+            update_ms: ms("lod"),
+            mesh_ms: ms("mesh"),
+            texels_updated: session.last_update.texels_updated,
+            changes: session.last_update.changes,
+            triangles: stats.triangles,
+            popping: pop,
+        });
+        each(i, &img)?;
+        prev = Some((img, reference));
+    }
+    let later = &out[1.min(out.len())..];
+    Ok(FlyReport {
+        lod: session.lod.name().to_string(),
+        mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
+        texels_updated: later.iter().map(|f| f.texels_updated).sum(),
+        popping_max: out.iter().map(|f| f.popping).fold(0.0, f64::max),
+        frames: out,
+    })
+}
+
+/// An animated GIF of RGBA frames (10 frames per second).
+pub fn gif(frames: &[Image]) -> Result<Vec<u8>> {
+    use image::codecs::gif::{GifEncoder, Repeat};
+    let mut bytes = Vec::new();
+    {
+        let mut enc = GifEncoder::new_with_speed(&mut bytes, 10);
+        enc.set_repeat(Repeat::Infinite)
+            .map_err(|e| Error::value("gif", e.to_string()))?;
+        for f in frames {
+            let buf = image::RgbaImage::from_raw(f.width, f.height, f.rgba.clone())
+                .ok_or_else(|| Error::value("gif", "frame size mismatch"))?;
+            let frame =
+                image::Frame::from_parts(buf, 0, 0, image::Delay::from_numer_denom_ms(100, 1));
+            enc.encode_frame(frame)
+                .map_err(|e| Error::value("gif", e.to_string()))?;
+        }
+    }
+    Ok(bytes)
+}

@@ -1,0 +1,241 @@
+//! The LOD schemes beside the clipmap, and the surveys that compare them:
+//! scheme invariants (GeoMipMapping's one-level rule, ROAM's budget and
+//! frame-to-frame coherence, CDLOD and annulus sanity), scene validation,
+//! and the tradeoff and fly reports on a small map.
+
+use proptest::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+use terraclip::camera::Camera;
+use terraclip::lod::geomipmap::{Config, GeoMipMap, Mode};
+use terraclip::lod::roam::{self, Roam};
+use terraclip::lod::{Lod, View};
+use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::scene::Scene;
+use terraclip::world::WorldMap;
+
+mod common;
+
+const SCENE: &str = r#"effects = ["morph", "lambert"]
+[terrain]
+procedural = { seed = 5, width = 257, height = 257, amplitude = 500.0, wavelength = 64.0 }
+cell_size = 10.0
+[lod]
+n = 15
+[camera]
+position = [600.0, -600.0, 700.0]
+look_at = [1500.0, -1500.0, 100.0]
+near = 1.0
+far = 20000.0
+[image]
+width = 96
+height = 54
+"#;
+
+fn scene() -> Scene {
+    Scene::parse(SCENE, "test scene", Path::new(".")).unwrap()
+}
+
+fn pyramid() -> Arc<Pyramid> {
+    let map = common::terrain(9, 257, 193);
+    Arc::new(Pyramid::build(&map, Filter::Box, 2))
+}
+
+fn camera(x: f64, y: f64, z: f64, tx: f64, ty: f64) -> Camera {
+    Camera {
+        eye: glam::DVec3::new(x, y, z),
+        target: glam::DVec3::new(tx, ty, 0.0),
+        fov_y_deg: 60.0,
+        near: 0.5,
+        far: 1e5,
+        aspect: 16.0 / 9.0,
+    }
+}
+
+fn with_view<T>(cam: &Camera, f: impl FnOnce(&View) -> T) -> T {
+    let world = WorldMap::new([1.0, 1.0], 1.0);
+    let frustum = cam.frustum();
+    f(&View {
+        camera: cam,
+        frustum: &frustum,
+        world: &world,
+        viewport: [320, 180],
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn geomipmap_neighbours_differ_by_at_most_one_level(
+        x in 0.0..256.0f64, y in -192.0..0.0f64, z in 1.0..200.0f64,
+        mode in 0..3usize, d in 4.0..64.0f64,
+    ) {
+        let mode = match mode {
+            0 => Mode::Linear { distance: d },
+            1 => Mode::Exponential { distance: d },
+            _ => Mode::Error { tau: d / 16.0 },
+        };
+        let mut g = GeoMipMap::new(pyramid(), Config { cells: 16, mode, morph: true });
+        let cam = camera(x, y, z, 128.0, -96.0);
+        let levels = with_view(&cam, |v| { g.update(v); g.block_levels().to_vec() });
+        let across = 256usize.div_ceil(16);
+        for (b, &l) in levels.iter().enumerate() {
+            let (i, j) = (b % across, b / across);
+            if i + 1 < across {
+                prop_assert!(l.abs_diff(levels[b + 1]) <= 1, "blocks {b} and {}", b + 1);
+            }
+            if b + across < levels.len() {
+                prop_assert!(l.abs_diff(levels[b + across]) <= 1, "blocks {b} and {}", b + across);
+            }
+            let _ = j;
+        }
+    }
+
+    #[test]
+    fn roam_keeps_its_budget_and_settles(
+        x in 0.0..256.0f64, y in -192.0..0.0f64, z in 5.0..200.0f64, budget in 200..3000usize,
+    ) {
+        let mut r = Roam::new(pyramid(), roam::Config { tau: 0.5, max_triangles: budget });
+        let cam = camera(x, y, z, 128.0, -96.0);
+        with_view(&cam, |v| {
+            r.update(v);
+            let first = r.triangle_count();
+            let mesh = r.mesh(v);
+            // A split may overshoot by one chain of forced splits (at most
+            // 2 triangles per bintree depth, 12 in a 64-cell patch).
+            prop_assert!(first <= budget + 48, "{first} > {budget} + 48");
+            prop_assert!(mesh.triangle_count() <= first);
+            // Frame-to-frame coherence: the same view again changes little.
+            let again = r.update(v);
+            prop_assert!(again.changes as usize <= first / 4 + 8, "{} changes", again.changes);
+            Ok(())
+        })?;
+    }
+}
+
+#[test]
+fn scheme_settings_are_validated() {
+    for (from, to, word) in [
+        (
+            "n = 15",
+            "n = 15\nscheme = \"geomipmap\"\nblock = 30",
+            "2^k + 1",
+        ),
+        (
+            "n = 15",
+            "n = 15\nscheme = \"geomipmap\"\nmode = \"cubic\"",
+            "cubic",
+        ),
+        ("n = 15", "n = 15\nscheme = \"roam\"\ntau = -1.0", "lod.tau"),
+        (
+            "n = 15",
+            "n = 15\nscheme = \"cdlod\"\ngrid = 3",
+            "power of two",
+        ),
+        ("n = 15", "n = 15\nscheme = \"cdlod\"\nrange = 0.5", ">= 1"),
+        (
+            "n = 15",
+            "n = 15\nscheme = \"roam\"\nmax_triangles = 0",
+            "> 0",
+        ),
+        ("n = 15", "n = 15\nscheme = \"quadtree\"", "available"),
+    ] {
+        let text = SCENE.replace(from, to);
+        let e = Scene::parse(&text, "s.toml", Path::new("."))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("s.toml") && e.contains(word), "{to}: {e}");
+    }
+}
+
+#[test]
+fn every_scheme_renders_the_default_view_near_brute_force() {
+    let s = scene();
+    let opts = terraclip::render::RenderOptions::default();
+    let cam = s.camera();
+    let (bf, _) = terraclip::render::render(&s.with_lod("brute-force").unwrap(), &opts).unwrap();
+    for lod in ["clipmap", "geomipmap", "roam", "cdlod", "annulus"] {
+        let (img, st) = terraclip::render::render(&s.with_lod(lod).unwrap(), &opts).unwrap();
+        let e = terraclip::metrics::image_error(&img, &bf, &cam);
+        println!("{lod}: {} triangles, rmse {:.2}", st.triangles, e.rmse);
+        assert!(st.triangles > 0, "{lod} drew nothing");
+        assert_eq!(st.non_finite_vertices, 0);
+        assert!(e.rmse < 40.0, "{lod}: rmse {}", e.rmse);
+    }
+}
+
+#[test]
+fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
+    let opts = terraclip::tradeoff::Options {
+        size: [64, 36],
+        path_frames: 4,
+        quick: true,
+    };
+    let r = terraclip::tradeoff::run(&scene(), &opts, |_| {}).unwrap();
+    for lod in [
+        "brute-force",
+        "clipmap",
+        "geomipmap",
+        "roam",
+        "cdlod",
+        "annulus",
+        "supersample",
+    ] {
+        assert!(r.rows.iter().any(|x| x.lod == lod), "no {lod} row");
+    }
+    let bf = r.rows.iter().find(|x| x.lod == "brute-force").unwrap();
+    assert_eq!((bf.rmse, bf.max_abs, bf.popping), (0.0, 0, 0.0));
+    assert!(bf.pareto, "nothing beats brute force's error");
+    for x in &r.rows {
+        assert!(
+            x.rmse.is_finite() && x.ms > 0.0 && x.triangles > 0.0,
+            "{x:?}"
+        );
+    }
+    let off = r
+        .rows
+        .iter()
+        .find(|x| x.config.contains("morph off"))
+        .unwrap();
+    assert!(off.popping > 0.0, "morph off shows no popping");
+    let ss: Vec<f64> = r
+        .rows
+        .iter()
+        .filter(|x| x.lod == "supersample")
+        .map(|x| x.rmse)
+        .collect();
+    assert!(
+        ss.windows(2).all(|w| w[1] < w[0]),
+        "1x > 4x > 16x error: {ss:?}"
+    );
+    // The CSV and the chart hold every row.
+    let dir = std::env::temp_dir().join(format!("terraclip-tradeoff-{}", std::process::id()));
+    terraclip::tradeoff::write(&r, &dir, "test").unwrap();
+    let csv = std::fs::read_to_string(dir.join("tradeoff.csv")).unwrap();
+    assert_eq!(csv.lines().count(), r.rows.len() + 1);
+    let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).unwrap();
+    assert!(svg.contains("ms per frame (log)") && svg.contains(">cdlod</text>"));
+    assert!(image::open(dir.join("tradeoff.png")).is_ok());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn fly_reports_updates_and_sees_pops_without_morph() {
+    let mut s = scene();
+    let on = terraclip::fly::fly(&s, 12, 7.0, true, |_, _| Ok(())).unwrap();
+    s.effects.retain(|e| e != "morph");
+    let off = terraclip::fly::fly(&s, 12, 7.0, true, |_, _| Ok(())).unwrap();
+    assert_eq!(on.frames.len(), 12);
+    assert!(on.texels_updated > 0, "the clipmap never updated");
+    println!(
+        "popping max: morph on {:.3}, off {:.3}",
+        on.popping_max, off.popping_max
+    );
+    assert!(off.popping_max > 0.0);
+    let bf = terraclip::fly::fly(&s.with_lod("brute-force").unwrap(), 3, 7.0, true, |_, _| {
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(bf.popping_max, 0.0, "brute force cannot pop against itself");
+}
