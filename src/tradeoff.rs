@@ -150,7 +150,9 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
                 1,
             );
         }
-        for w in [1.0f32, 8.0] {
+        // The narrowest band and the widest that never reaches a level's
+        // inner edge (m − 3, m = (n+1)/4).
+        for w in [1.0f32, ((n + 1) / 4 - 3) as f32] {
             add(
                 "clipmap",
                 format!("n={n} w={w}"),
