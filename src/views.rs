@@ -72,11 +72,17 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
         let (x, y) = (lo.x + size.x * fx, lo.y + size.y * fy);
         DVec3::new(x, y, session.ground(x, y) + up)
     };
+    // Heights and distances scale with the map's horizontal extent too, so
+    // a continent-sized DEM is seen from an aircraft, not from a hill.
+    let span = size.x.min(size.y.abs());
+    let lift = 0.01 * span;
     let mut out = Vec::new();
     let wide = [(0.2, 0.2), (0.8, 0.2), (0.8, 0.8), (0.2, 0.8)];
     for (i, &(fx, fy)) in wide.iter().enumerate() {
-        let eye = at(fx, fy, 0.4 * relief);
-        let target = at(0.5 + 0.15 * (0.5 - fx), 0.5 + 0.15 * (0.5 - fy), 0.0);
+        let eye = at(fx, fy, 0.4 * relief + lift);
+        // Toward the centre, 0.15 of the map's width away.
+        let d = DVec3::new(0.5 - fx, 0.5 - fy, 0.0).normalize() * 0.15;
+        let target = at(fx + d.x, fy + d.y, 0.0);
         out.push(NamedView {
             name: format!("wide-{i}"),
             kind: "wide",
@@ -95,7 +101,7 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
         (6.0, 0.6, 0.6),
     ];
     for &(fov, tx, ty) in &narrow {
-        let eye = at(0.05, 0.05, 0.3 * relief);
+        let eye = at(0.05, 0.05, 0.3 * relief + lift);
         let target = at(tx, ty, 0.0);
         out.push(NamedView {
             name: format!("low-fov-{fov}"),
