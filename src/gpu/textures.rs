@@ -194,66 +194,67 @@ impl Atlas {
         Ok(())
     }
 
-    /// The lightmap's pyramid, one R32Float level under another.
-    pub fn lightmap(gpu: &Gpu, lm: Option<&Lightmap>) -> Result<Atlas> {
-        let levels = lm.map_or(&[][..], |l| &l.pyramid.levels[..]);
-        let w = levels.iter().map(|p| p.width).max().unwrap_or(1);
-        let h: usize = levels.iter().map(|p| p.height).sum();
-        Self::check(gpu, w, h, "lightmap")?;
-        let texture = texture(
-            gpu,
-            [w as u32, h as u32, 1],
-            wgpu::TextureFormat::R32Float,
-            "lightmap",
-        );
+    /// Stacks `parts` (size and texel bytes, or none) one under another in
+    /// a `format` texture with `texel` bytes per texel; `rows` gets each
+    /// part's first row (an absent part gets the row the next one starts).
+    fn stack(
+        gpu: &Gpu,
+        what: &str,
+        format: wgpu::TextureFormat,
+        texel: u32,
+        parts: &[Option<([usize; 2], &[u8])>],
+    ) -> Result<Atlas> {
+        let w = parts.iter().flatten().map(|p| p.0[0]).max().unwrap_or(1);
+        let h: usize = parts.iter().flatten().map(|p| p.0[1]).sum();
+        Self::check(gpu, w, h, what)?;
+        let texture = texture(gpu, [w as u32, h as u32, 1], format, what);
         let mut rows = vec![];
         let mut y = 0;
-        for p in levels {
+        for part in parts {
             rows.push(y as i32);
-            let sz = [p.width as u32, p.height as u32];
-            write(
-                gpu,
-                &texture,
-                [0, y as u32, 0],
-                sz,
-                bytemuck::cast_slice(&p.data),
-                4 * sz[0],
-            );
-            y += p.height;
+            if let Some((size, data)) = part {
+                let sz = [size[0] as u32, size[1] as u32];
+                write(gpu, &texture, [0, y as u32, 0], sz, data, texel * sz[0]);
+                y += size[1];
+            }
         }
         Ok(Atlas { texture, rows })
     }
 
+    /// The lightmap's pyramid, one R32Float level under another.
+    pub fn lightmap(gpu: &Gpu, lm: Option<&Lightmap>) -> Result<Atlas> {
+        let levels = lm.map_or(&[][..], |l| &l.pyramid.levels[..]);
+        let parts: Vec<_> = levels
+            .iter()
+            .map(|p| Some(([p.width, p.height], bytemuck::cast_slice(&p.data))))
+            .collect();
+        Self::stack(gpu, "lightmap", wgpu::TextureFormat::R32Float, 4, &parts)
+    }
+
     /// The drawn levels' normal maps, RGBA32Float (xyz used).
     pub fn normal_maps(gpu: &Gpu, maps: &[Option<NormalMap>]) -> Result<Atlas> {
-        let w = maps.iter().flatten().map(|m| m.size[0]).max().unwrap_or(1);
-        let h: usize = maps.iter().flatten().map(|m| m.size[1]).sum();
-        Self::check(gpu, w, h, "normal-map")?;
-        let texture = texture(
+        let data: Vec<Option<Vec<[f32; 4]>>> = maps
+            .iter()
+            .map(|m| {
+                m.as_ref()
+                    .map(|m| m.data.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect())
+            })
+            .collect();
+        let parts: Vec<_> = maps
+            .iter()
+            .zip(&data)
+            .map(|(m, d)| match (m, d) {
+                (Some(m), Some(d)) => Some((m.size, bytemuck::cast_slice(d))),
+                _ => None,
+            })
+            .collect();
+        Self::stack(
             gpu,
-            [w as u32, h as u32, 1],
+            "normal-map",
             wgpu::TextureFormat::Rgba32Float,
-            "normal maps",
-        );
-        let mut rows = vec![];
-        let mut y = 0;
-        for m in maps {
-            rows.push(y as i32);
-            if let Some(m) = m {
-                let data: Vec<[f32; 4]> = m.data.iter().map(|n| [n[0], n[1], n[2], 0.0]).collect();
-                let sz = [m.size[0] as u32, m.size[1] as u32];
-                write(
-                    gpu,
-                    &texture,
-                    [0, y as u32, 0],
-                    sz,
-                    bytemuck::cast_slice(&data),
-                    16 * sz[0],
-                );
-                y += m.size[1];
-            }
-        }
-        Ok(Atlas { texture, rows })
+            16,
+            &parts,
+        )
     }
 }
 
