@@ -9,14 +9,7 @@ use terraclip::stats::Passes;
 
 fn bench(c: &mut Criterion) {
     let base = Scene::default_scene();
-    for spec in [
-        "clipmap/strips",
-        "clipmap/footprints",
-        "geomipmap",
-        "roam",
-        "cdlod",
-        "annulus",
-    ] {
+    for &spec in terraclip::cracks::ALL {
         let scene = base.with_lod(spec).expect("valid scheme");
         let mut s = Session::new(&scene, &mut Passes::default()).expect("session");
         let start = scene.camera();

@@ -72,19 +72,11 @@ pub fn fly(
             (Some((p, Some(pr))), Some(r)) => metrics::popping([p, &img], [pr, r]),
             _ => 0.0,
         };
-        let ms = |n: &str| {
-            stats
-                .passes
-                .iter()
-                .filter(|p| p.name == n)
-                .map(|p| p.ms)
-                .sum()
-        };
         out.push(FlyFrame {
             frame: i,
             ms: stats.ms_total,
-            update_ms: ms("lod"),
-            mesh_ms: ms("mesh"),
+            update_ms: stats.pass_ms(&["lod"]),
+            mesh_ms: stats.pass_ms(&["mesh"]),
             texels_updated: session.last_update.texels_updated,
             changes: session.last_update.changes,
             triangles: stats.triangles,

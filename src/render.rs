@@ -66,6 +66,17 @@ pub struct RenderStats {
     pub normals_computed: usize,
 }
 
+impl RenderStats {
+    /// Total time of the passes named `names` (ms).
+    pub fn pass_ms(&self, names: &[&str]) -> f64 {
+        self.passes
+            .iter()
+            .filter(|p| names.contains(&p.name.as_str()))
+            .map(|p| p.ms)
+            .sum()
+    }
+}
+
 /// Render settings that are not part of the scene.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderOptions {

@@ -416,8 +416,7 @@ impl Scene {
     /// Levels the clipmap will have on heightmap `h` (pyramid levels to
     /// build).
     pub fn clipmap_levels(&self, h: &Heightmap) -> usize {
-        let max = crate::clipmap::region::max_levels(h.width(), h.height(), self.lod.n);
-        self.lod.levels.unwrap_or(max).max(1)
+        LodConfig::Clipmap(self.clipmap_config()).pyramid_levels(h.width(), h.height())
     }
 
     /// A clipmap over `pyramid`, with errors naming this scene.

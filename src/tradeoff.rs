@@ -275,15 +275,6 @@ fn session_for(scene: &Scene, size: [u32; 2], samples: u32) -> Result<Session> {
     Session::new(&s, &mut Passes::default())
 }
 
-fn pass_ms(stats: &RenderStats, names: &[&str]) -> f64 {
-    stats
-        .passes
-        .iter()
-        .filter(|p| names.contains(&p.name.as_str()))
-        .map(|p| p.ms)
-        .sum()
-}
-
 /// Measures every setting; `tick(label)` is called after each.
 pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<Report> {
     let settings = settings(scene, opts.quick)?;
@@ -332,11 +323,11 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             };
             errs.push((metrics::image_error(&img, &reference, &v.camera), v.kind));
             ms += stats.ms_total;
-            parts[0] += pass_ms(&stats, &["lod"]);
-            parts[1] += pass_ms(&stats, &["mesh"]);
-            parts[2] += pass_ms(&stats, &["vertex", "normals", "normal-map", "lightmap"]);
-            parts[3] += pass_ms(&stats, &["raster"]);
-            parts[4] += pass_ms(&stats, &["shade"]);
+            parts[0] += stats.pass_ms(&["lod"]);
+            parts[1] += stats.pass_ms(&["mesh"]);
+            parts[2] += stats.pass_ms(&["vertex", "normals", "normal-map", "lightmap"]);
+            parts[3] += stats.pass_ms(&["raster"]);
+            parts[4] += stats.pass_ms(&["shade"]);
             tris += stats.triangles as f64;
         }
         // Popping along the path (brute-force referenced settings only).

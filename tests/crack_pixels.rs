@@ -6,30 +6,14 @@
 //! draping annulus (T-junctions between rings) and clipmaps or CDLOD with
 //! morph off show cracks.
 
-use std::path::Path;
+mod common;
 use terraclip::cracks::{survey, CrackReport};
 use terraclip::scene::Scene;
 
 fn scene(morph: bool) -> Scene {
-    let effects = if morph { r#"["morph"]"# } else { "[]" };
-    let text = format!(
-        r#"effects = {effects}
-[terrain]
-procedural = {{ seed = 5, width = 257, height = 257, amplitude = 500.0, wavelength = 64.0 }}
-cell_size = 10.0
-[lod]
-n = 15
-[camera]
-position = [1280.0, -1280.0, 900.0]
-look_at = [1500.0, -1500.0, 100.0]
-near = 1.0
-far = 20000.0
-[image]
-width = 96
-height = 64
-"#
-    );
-    Scene::parse(&text, "crack scene", Path::new(".")).unwrap()
+    let mut s = common::small_scene();
+    s.effects = if morph { vec!["morph".into()] } else { vec![] };
+    s
 }
 
 fn run(morph: bool, schemes: &[&str], views: usize) -> CrackReport {

@@ -16,24 +16,8 @@ use terraclip::world::WorldMap;
 
 mod common;
 
-const SCENE: &str = r#"effects = ["morph", "lambert"]
-[terrain]
-procedural = { seed = 5, width = 257, height = 257, amplitude = 500.0, wavelength = 64.0 }
-cell_size = 10.0
-[lod]
-n = 15
-[camera]
-position = [600.0, -600.0, 700.0]
-look_at = [1500.0, -1500.0, 100.0]
-near = 1.0
-far = 20000.0
-[image]
-width = 96
-height = 54
-"#;
-
 fn scene() -> Scene {
-    Scene::parse(SCENE, "test scene", Path::new(".")).unwrap()
+    common::small_scene()
 }
 
 fn pyramid() -> Arc<Pyramid> {
@@ -141,7 +125,7 @@ fn scheme_settings_are_validated() {
         ),
         ("n = 15", "n = 15\nscheme = \"quadtree\"", "available"),
     ] {
-        let text = SCENE.replace(from, to);
+        let text = common::SMALL_SCENE.replace(from, to);
         let e = Scene::parse(&text, "s.toml", Path::new("."))
             .unwrap_err()
             .to_string();

@@ -15,7 +15,9 @@
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
+use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::Pyramid;
+use glam::DVec3;
 use std::sync::Arc;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,45 +86,36 @@ impl Cdlod {
         out
     }
 
-    fn aabb_distance(&self, view: &View, a: &Area) -> Option<f64> {
+    /// The world box of an area (clamped to the map, over its heights);
+    /// None when it lies wholly beyond the map.
+    fn node_box(&self, view: &View, a: &Area) -> Option<(DVec3, DVec3)> {
         let base = &self.pyramid.levels[0];
         let (mw, mh) = (base.width as i64 - 1, base.height as i64 - 1);
         if a.c0 >= mw.max(1) || a.r0 >= mh.max(1) {
-            return None; // wholly beyond the map
+            return None;
         }
         let (lo, hi) = self.bounds.range(a.c0, a.r0, a.c0 + a.size, a.r0 + a.size);
         let (c1, r1) = ((a.c0 + a.size).min(mw), (a.r0 + a.size).min(mh));
-        let (p, q) = view.world.aabb(
+        Some(view.world.aabb(
             a.c0 as f64,
             a.r0 as f64,
             c1 as f64,
             r1 as f64,
             lo as f64,
             hi as f64,
-        );
-        let e = view.camera.eye;
-        Some((e.clamp(p, q) - e).length())
+        ))
     }
 
-    fn select(&self, view: &View, node: Area, out: &mut Vec<Area>) {
-        let Some(d) = self.aabb_distance(view, &node) else {
-            return;
-        };
-        let (lo, hi) =
-            self.bounds
-                .range(node.c0, node.r0, node.c0 + node.size, node.r0 + node.size);
-        let rect = [node.c0, node.r0, node.c0 + node.size, node.r0 + node.size];
-        if !grid::visible(
-            &self.pyramid.levels[0],
-            view.frustum,
-            view.world,
-            rect,
-            (lo, hi),
-        ) {
+    /// Selects `node` (whose box is `bx`) or its children's areas.
+    fn select(&self, view: &View, node: Area, bx: (DVec3, DVec3), out: &mut Vec<Area>) {
+        let e = view.camera.eye;
+        let distance = |(p, q): (DVec3, DVec3)| (e.clamp(p, q) - e).length();
+        let visible = |(p, q): (DVec3, DVec3)| classify(view.frustum, p, q) != Class::Outside;
+        if !visible(bx) {
             return;
         }
         let l = node.level;
-        if l == 0 || d > self.ranges[l as usize - 1].0 {
+        if l == 0 || distance(bx) > self.ranges[l as usize - 1].0 {
             out.push(node);
             return;
         }
@@ -134,17 +127,14 @@ impl Cdlod {
                 size: h,
                 level: l - 1,
             };
-            match self.aabb_distance(view, &child) {
-                None => {}
-                Some(cd) if cd <= self.ranges[l as usize - 1].0 => self.select(view, child, out),
-                Some(_) => {
-                    let quarter = Area { level: l, ..child };
-                    let r = [quarter.c0, quarter.r0, quarter.c0 + h, quarter.r0 + h];
-                    let b = self.bounds.range(r[0], r[1], r[2], r[3]);
-                    if grid::visible(&self.pyramid.levels[0], view.frustum, view.world, r, b) {
-                        out.push(quarter);
-                    }
-                }
+            let Some(cb) = self.node_box(view, &child) else {
+                continue;
+            };
+            if distance(cb) <= self.ranges[l as usize - 1].0 {
+                self.select(view, child, cb, out);
+            } else if visible(cb) {
+                // The child's quarter, drawn at this node's level.
+                out.push(Area { level: l, ..child });
             }
         }
     }
@@ -216,7 +206,9 @@ impl Lod for Cdlod {
             size: (self.cfg.grid as i64) << self.root_level,
             level: self.root_level,
         };
-        self.select(view, root, &mut selected);
+        if let Some(bx) = self.node_box(view, &root) {
+            self.select(view, root, bx, &mut selected);
+        }
         let changes = selected
             .iter()
             .filter(|a| !self.selected.contains(a))

@@ -12,7 +12,7 @@
 //! neighbour if it is coarser (forced splits), so the mesh never has a
 //! T-junction.
 
-use super::grid;
+use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, View};
 use crate::pyramid::Pyramid;
 use rayon::prelude::*;
@@ -108,19 +108,10 @@ impl Roam {
                 e
             })
             .collect();
+        let mm = MinMax::new(base);
+        let k = PATCH.trailing_zeros() as usize;
         let bounds = (0..count as i64)
-            .map(|p| {
-                let (c0, r0) = ((p % patches[0]) * PATCH, (p / patches[0]) * PATCH);
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for r in r0..=r0 + PATCH {
-                    for c in c0..=c0 + PATCH {
-                        let z = base.get_clamped(c, r);
-                        lo = lo.min(z);
-                        hi = hi.max(z);
-                    }
-                }
-                (lo, hi)
-            })
+            .map(|p| mm.get(k, p % patches[0], p / patches[0]))
             .collect();
         let mut roam = Roam {
             pyramid,

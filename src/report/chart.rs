@@ -307,28 +307,41 @@ fn paint(rgb: [u8; 3]) -> tiny_skia::Paint<'static> {
     p
 }
 
+impl PngCanvas {
+    fn stroke(
+        &mut self,
+        path: &tiny_skia::Path,
+        rgb: [u8; 3],
+        width: f64,
+        dash: Option<tiny_skia::StrokeDash>,
+    ) {
+        let stroke = tiny_skia::Stroke {
+            width: width as f32,
+            dash,
+            ..Default::default()
+        };
+        self.0.stroke_path(
+            path,
+            &paint(rgb),
+            &stroke,
+            tiny_skia::Transform::identity(),
+            None,
+        );
+    }
+}
+
 impl Canvas for PngCanvas {
     fn line(&mut self, a: (f64, f64), b: (f64, f64), rgb: [u8; 3], width: f64, dashed: bool) {
         let mut pb = tiny_skia::PathBuilder::new();
         pb.move_to(a.0 as f32, a.1 as f32);
         pb.line_to(b.0 as f32, b.1 as f32);
         let Some(path) = pb.finish() else { return };
-        let stroke = tiny_skia::Stroke {
-            width: width as f32,
-            dash: if dashed {
-                tiny_skia::StrokeDash::new(vec![6.0, 4.0], 0.0)
-            } else {
-                None
-            },
-            ..Default::default()
+        let dash = if dashed {
+            tiny_skia::StrokeDash::new(vec![6.0, 4.0], 0.0)
+        } else {
+            None
         };
-        self.0.stroke_path(
-            &path,
-            &paint(rgb),
-            &stroke,
-            tiny_skia::Transform::identity(),
-            None,
-        );
+        self.stroke(&path, rgb, width, dash);
     }
     fn circle(&mut self, c: (f64, f64), r: f64, rgb: [u8; 3], filled: bool) {
         let Some(path) = tiny_skia::PathBuilder::from_circle(c.0 as f32, c.1 as f32, r as f32)
@@ -344,17 +357,7 @@ impl Canvas for PngCanvas {
                 None,
             );
         } else {
-            let stroke = tiny_skia::Stroke {
-                width: 1.5,
-                ..Default::default()
-            };
-            self.0.stroke_path(
-                &path,
-                &paint(rgb),
-                &stroke,
-                tiny_skia::Transform::identity(),
-                None,
-            );
+            self.stroke(&path, rgb, 1.5, None);
         }
     }
     fn text(&mut self, p: (f64, f64), s: &str, size: f64, anchor: Anchor, vertical: bool) {
