@@ -1,6 +1,9 @@
 //! Watertightness of the morphed mesh, both index layouts, checked exactly on
 //! integer positions and f32 height bits:
-//! - every non-degenerate triangle has positive orientation;
+//! - every triangle has strictly positive orientation: a zero-area triangle
+//!   would get attribute planes extrapolated from a near-zero area wherever
+//!   snapping gives it a pixel (the GPU Gems ring did: colour 3.2 on a 0–1
+//!   ramp, seen as 1-px "cracks" by the survey);
 //! - every directed edge is matched by exactly one reverse edge, except the
 //!   edges on the perimeter of the rendered area, which appear once, in
 //!   order, and add up to the perimeter;
@@ -39,8 +42,11 @@ fn check(cm: &Clipmap) -> Option<String> {
             let [a, b, c] = t;
             let cross = (b.x - a.x) as i128 * (c.y - a.y) as i128
                 - (b.y - a.y) as i128 * (c.x - a.x) as i128;
-            if cross < 0 {
-                return Some(format!("negative triangle at level {}: {t:?}", mesh.level));
+            if cross <= 0 {
+                return Some(format!(
+                    "non-positive triangle at level {}: {t:?}",
+                    mesh.level
+                ));
             }
             area2 += cross;
             for (p, q) in [(a, b), (b, c), (c, a)] {

@@ -108,6 +108,15 @@ pub fn clipped_xy_bounds(f: &Frustum, lo: DVec3, hi: DVec3) -> Option<(DVec3, DV
     Some((min, max))
 }
 
+/// The level texels a closed rectangle's triangles can reach: stitching
+/// moves boundary vertices one texel toward lower x or y
+/// ([`super::morph::MorphParams::stitch`]), so a triangle of the
+/// rectangle's first row or column can cover part of the cell below it.
+/// Boxes for culling are built from this reach, never from the rectangle.
+pub fn stitch_reach(r: [i64; 4]) -> [i64; 4] {
+    [r[0] - 1, r[1] - 1, r[2], r[3]]
+}
+
 /// Culls and crops a closed rectangle of level-l texels `[x0,y0,x1,y1]`
 /// (level spacing `g` base texels) whose heights lie in `[zlo, zhi]`.
 /// Returns the cropped rectangle, or `None` if nothing of it is visible.
@@ -120,9 +129,10 @@ pub fn cull_rect(
     zhi: f32,
 ) -> Option<[i64; 4]> {
     let s = g as f64;
+    let reach = stitch_reach(r);
     let (lo, hi) = world.aabb(
-        r[0] as f64 * s,
-        r[1] as f64 * s,
+        reach[0] as f64 * s,
+        reach[1] as f64 * s,
         r[2] as f64 * s,
         r[3] as f64 * s,
         zlo as f64,

@@ -10,14 +10,18 @@
 //! (b) **Static footprints** (GPU Gems 2 ch. 2): shapes built once per n and
 //! placed per frame by offset only: 12 m×m blocks per ring (m = (n+1)/4),
 //! 4 m×3 ring fix-ups, an L-shaped interior trim in one of 4 positions, a
-//! full centre for the finest level, and an outer ring of zero-area
-//! triangles.
+//! full centre for the finest level.
 //!
 //! Every mesh splits a cell along its main diagonal (x, y)–(x+1, y+1), and
 //! every non-degenerate triangle has positive orientation in (column, row)
-//! space. The zero-area ring triangles (a, b, mid) along each stitched
-//! boundary turn the T-junctions between levels into shared edges, which
-//! removes the pixel leaks that snapping would otherwise open (GPU Gems 2).
+//! space. Where a level meets a coarser one, the vertex stage collapses the
+//! odd boundary vertices onto their even neighbours
+//! ([`super::morph::MorphParams::stitch`]), so the two levels share whole
+//! edges. GPU Gems 2 closes those T-junctions with an outer ring of
+//! zero-area triangles instead; we measured why we do not: once snapped,
+//! such a triangle can cover a pixel with attribute planes extrapolated
+//! from a near-zero area (a colour of 3.2 on a 0–1 ramp), and it cannot be
+//! culled, because the clipper keeps it.
 
 use super::region::{block_size, Rect};
 use super::toroid::Toroid;
@@ -56,38 +60,6 @@ impl Shape {
     fn rect(x0: i32, y0: i32, w: i32, h: i32) -> Shape {
         Shape::from_cells((y0..y0 + h).flat_map(move |y| (x0..x0 + w).map(move |x| (x, y))))
     }
-}
-
-/// Zero-area stitching triangles (a, b, mid) along the sides of `r` (level
-/// texels) flagged in `sides` (x0, y0, x1, y1), walking the boundary in the
-/// direction the positive triangles inside use.
-pub fn ring_triangles(r: [i64; 4], sides: [bool; 4]) -> Vec<[[i64; 2]; 3]> {
-    let [x0, y0, x1, y1] = r;
-    let mut out = vec![];
-    let mut push = |a: [i64; 2], b: [i64; 2]| {
-        out.push([a, b, [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]]);
-    };
-    if sides[1] {
-        for x in (x0..x1).step_by(2) {
-            push([x, y0], [x + 2, y0]);
-        }
-    }
-    if sides[2] {
-        for y in (y0..y1).step_by(2) {
-            push([x1, y], [x1, y + 2]);
-        }
-    }
-    if sides[3] {
-        for x in (x0 + 2..=x1).rev().step_by(2) {
-            push([x, y1], [x - 2, y1]);
-        }
-    }
-    if sides[0] {
-        for y in (y0 + 2..=y1).rev().step_by(2) {
-            push([x0, y], [x0, y - 2]);
-        }
-    }
-    out
 }
 
 /// Layout (a): strip indices into the level's toroid for the given render
@@ -139,7 +111,6 @@ pub enum ShapeId {
     /// trim row on the high-y side.
     Trim(u8),
     Centre,
-    Ring,
 }
 
 /// One placed footprint: shape plus offset in level texels (world).
@@ -159,7 +130,6 @@ pub struct Footprints {
     pub fixup_horizontal: Shape,
     pub trims: [Shape; 4],
     pub centre: Shape,
-    pub ring: Shape,
 }
 
 impl Footprints {
@@ -176,15 +146,6 @@ impl Footprints {
             );
             Shape::from_cells(cells)
         };
-        let mut ring = Shape::default();
-        let s = n - 1;
-        for t in ring_triangles([0, 0, s, s], [true; 4]) {
-            let base = ring.vertices.len() as u32;
-            for p in t {
-                ring.vertices.push([p[0] as i32, p[1] as i32]);
-            }
-            ring.triangles.push([base, base + 1, base + 2]);
-        }
         Footprints {
             n,
             m: m as i64,
@@ -193,7 +154,6 @@ impl Footprints {
             fixup_horizontal: Shape::rect(0, 0, m - 1, 2),
             trims: [trim(0), trim(1), trim(2), trim(3)],
             centre: Shape::rect(m - 1, m - 1, e, e),
-            ring,
         }
     }
 
@@ -204,20 +164,13 @@ impl Footprints {
             ShapeId::FixupHorizontal => &self.fixup_horizontal,
             ShapeId::Trim(v) => &self.trims[v as usize & 3],
             ShapeId::Centre => &self.centre,
-            ShapeId::Ring => &self.ring,
         }
     }
 
     /// Instances for a level whose window starts at `origin` (level texels).
     /// `finer_origin` is the finer level's origin in *its* texels (None for the
-    /// finest level, which gets the full centre); `outer_ring` adds the
-    /// zero-area ring (all levels but the coarsest).
-    pub fn instances(
-        &self,
-        origin: [i64; 2],
-        finer_origin: Option<[i64; 2]>,
-        outer_ring: bool,
-    ) -> Vec<Instance> {
+    /// finest level, which gets the full centre).
+    pub fn instances(&self, origin: [i64; 2], finer_origin: Option<[i64; 2]>) -> Vec<Instance> {
         let m = self.m;
         let at = |shape, x: i64, y: i64| Instance {
             shape,
@@ -250,9 +203,6 @@ impl Footprints {
                 out.push(at(ShapeId::Trim(v), 0, 0));
             }
         }
-        if outer_ring {
-            out.push(at(ShapeId::Ring, 0, 0));
-        }
         out
     }
 }
@@ -277,7 +227,7 @@ mod tests {
         for n in [15i64, 31, 63] {
             let f = Footprints::new(n);
             let m = f.m;
-            let inst = f.instances([0, 0], Some([2 * m, 2 * m]), true);
+            let inst = f.instances([0, 0], Some([2 * m, 2 * m]));
             let mut cover = vec![0u32; ((n - 1) * (n - 1)) as usize];
             for i in &inst {
                 let s = f.shape(i.shape);

@@ -13,7 +13,7 @@ use crate::camera::Frustum;
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
 use crate::world::WorldMap;
-use footprint::{Footprints, Instance, ShapeId};
+use footprint::{Footprints, Instance};
 use level::ClipLevel;
 use region::{Rect, RegionParams};
 use serde::{Deserialize, Serialize};
@@ -88,12 +88,8 @@ pub struct MeshVertex {
 /// One level's geometry for a frame, in the layout's own form.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LevelGeometry {
-    /// Strip indices into the level's toroid (vertex i = toroid texel i) and
-    /// the zero-area stitching triangles as toroid-index triples.
-    Strips {
-        strip: Vec<u32>,
-        ring: Vec<[u32; 3]>,
-    },
+    /// Strip indices into the level's toroid (vertex i = toroid texel i).
+    Strips { strip: Vec<u32> },
     /// Placed static footprints.
     Footprints {
         instances: Vec<Instance>,
@@ -293,14 +289,17 @@ impl Clipmap {
         stats
     }
 
-    /// The vertex stage for level `l` at level texel (x, y): height fetch,
-    /// coarser height, α and the morphed height.
+    /// The vertex stage for level `l` at level texel (x, y): stitching
+    /// ([`morph::MorphParams::stitch`]), height fetch, coarser height, α and
+    /// the morphed height.
     #[inline]
     pub fn vertex(&self, l: usize, x: i64, y: i64) -> MeshVertex {
         let lv = &self.levels[l];
-        let z = lv.heights.get(x, y);
         let o = lv.regions.origin;
-        let alpha = lv.morph.alpha((x - o[0]) as i32, (y - o[1]) as i32);
+        let (sx, sy) = lv.morph.stitch((x - o[0]) as i32, (y - o[1]) as i32);
+        let (x, y) = (o[0] + sx as i64, o[1] + sy as i64);
+        let z = lv.heights.get(x, y);
+        let alpha = lv.morph.alpha(sx, sy);
         let zc = if lv.morph.enabled {
             morph::coarse_height(&self.levels[l + 1].heights, x, y)
         } else {
@@ -357,39 +356,9 @@ impl Clipmap {
                 None => Some(r),
             })
             .collect();
-        let strip = footprint::strip_indices(&lv.heights, &rects);
-        let mut ring = vec![];
-        if lv.morph.enabled {
-            let a = footprint::to_level(&lv.regions.active.expect("active level"), l);
-            for t in footprint::ring_triangles(a, lv.morph.stitched) {
-                let visible = match frustum {
-                    Some((f, w)) => {
-                        let xs = t.map(|p| p[0]);
-                        let ys = t.map(|p| p[1]);
-                        let r = [
-                            *xs.iter().min().expect("3"),
-                            *ys.iter().min().expect("3"),
-                            *xs.iter().max().expect("3"),
-                            *ys.iter().max().expect("3"),
-                        ];
-                        let (lo, hi) = w.aabb(
-                            (r[0] * g) as f64,
-                            (r[1] * g) as f64,
-                            (r[2] * g) as f64,
-                            (r[3] * g) as f64,
-                            zlo as f64,
-                            zhi as f64,
-                        );
-                        cull::classify(f, lo, hi) != cull::Class::Outside
-                    }
-                    None => true,
-                };
-                if visible {
-                    ring.push(t.map(|p| lv.heights.index(p[0], p[1]) as u32));
-                }
-            }
+        LevelGeometry::Strips {
+            strip: footprint::strip_indices(&lv.heights, &rects),
         }
-        LevelGeometry::Strips { strip, ring }
     }
 
     fn footprint_geometry(
@@ -402,9 +371,7 @@ impl Clipmap {
             .checked_sub(1)
             .filter(|&f| self.levels[f].is_active())
             .map(|f| self.levels[f].regions.origin);
-        let mut instances = self
-            .footprints
-            .instances(lv.regions.origin, finer, lv.morph.enabled);
+        let mut instances = self.footprints.instances(lv.regions.origin, finer);
         if let Some((f, w)) = frustum {
             let (zlo, zhi) = self.height_range(l);
             let g = lv.spacing() as f64;
@@ -419,15 +386,16 @@ impl Clipmap {
                     x1 = x1.max(v[0]);
                     y1 = y1.max(v[1]);
                 }
-                let c0 = (i.offset[0] + x0 as i64) as f64 * g;
-                let r0 = (i.offset[1] + y0 as i64) as f64 * g;
-                let c1 = (i.offset[0] + x1 as i64) as f64 * g;
-                let r1 = (i.offset[1] + y1 as i64) as f64 * g;
-                let off_map = c1 < 0.0 || r1 < 0.0 || c0 > map[0] || r0 > map[1];
-                let (lo, hi) = w.aabb(c0, r0, c1, r1, zlo as f64, zhi as f64);
-                // The zero-area ring must stay whenever its level is drawn.
-                i.shape == ShapeId::Ring
-                    || (!off_map && cull::classify(f, lo, hi) != cull::Class::Outside)
+                let r = cull::stitch_reach([
+                    i.offset[0] + x0 as i64,
+                    i.offset[1] + y0 as i64,
+                    i.offset[0] + x1 as i64,
+                    i.offset[1] + y1 as i64,
+                ])
+                .map(|v| v as f64 * g);
+                let off_map = r[2] < 0.0 || r[3] < 0.0 || r[0] > map[0] || r[1] > map[1];
+                let (lo, hi) = w.aabb(r[0], r[1], r[2], r[3], zlo as f64, zhi as f64);
+                !off_map && cull::classify(f, lo, hi) != cull::Class::Outside
             });
         }
         // Blocks crossing the map edge: their in-map triangles only. The
@@ -469,10 +437,9 @@ impl Clipmap {
                 toroid::Toroid::<f32>::world_of(ty, o[1], s),
             )
         };
-        match &mesh.geometry {
-            LevelGeometry::Strips { strip, ring } => footprint::strip_to_triangles(strip)
+        let mut tris: Vec<[MeshVertex; 3]> = match &mesh.geometry {
+            LevelGeometry::Strips { strip } => footprint::strip_to_triangles(strip)
                 .into_iter()
-                .chain(ring.iter().copied())
                 .map(|t| t.map(at))
                 .collect(),
             LevelGeometry::Footprints { instances, edge } => instances
@@ -488,6 +455,12 @@ impl Clipmap {
                 })
                 .chain(edge.iter().map(|t| t.map(at)))
                 .collect(),
-        }
+        };
+        // Triangles that stitching collapsed cover nothing anywhere.
+        tris.retain(|t| {
+            let same = |a: &MeshVertex, b: &MeshVertex| a.x == b.x && a.y == b.y;
+            !(same(&t[0], &t[1]) || same(&t[1], &t[2]) || same(&t[2], &t[0]))
+        });
+        tris
     }
 }

@@ -48,6 +48,31 @@ impl MorphParams {
         let ay = (((y as f32 - self.viewer[1]).abs() - t) / self.width).clamp(0.0, 1.0);
         ax.max(ay)
     }
+
+    /// Where vertex (x, y) (relative to the window origin) is drawn: an odd
+    /// vertex on a stitched side moves onto its even neighbour below, so the
+    /// level's outer edges are exactly the coarser level's edges. With α = 1
+    /// there it already lies on that edge; collapsing it removes the
+    /// T-junction outright. The zero-area triangles the literature uses
+    /// instead get extrapolated attribute planes wherever snapping gives them
+    /// a pixel, and the clipper keeps them. Triangles that collapse have two
+    /// bit-identical vertices, which no rasteriser covers (collapsing to the
+    /// lower neighbour never flips a triangle with the main diagonal).
+    #[inline]
+    pub fn stitch(&self, x: i32, y: i32) -> (i32, i32) {
+        if !self.enabled {
+            return (x, y);
+        }
+        let [x0, y0, x1, y1] = self.boundary;
+        let s = &self.stitched;
+        if ((s[1] && y == y0) || (s[3] && y == y1)) && (x - x0) & 1 == 1 {
+            return (x - 1, y);
+        }
+        if ((s[0] && x == x0) || (s[2] && x == x1)) && (y - y0) & 1 == 1 {
+            return (x, y - 1);
+        }
+        (x, y)
+    }
 }
 
 /// z′ = (1 − α)·z + α·z_c, evaluated without FMA.
@@ -111,5 +136,24 @@ mod tests {
     fn blend_endpoints_are_exact() {
         assert_eq!(blend(3.7, -2.25, 1.0), -2.25);
         assert_eq!(blend(3.7, -2.25, 0.0), 3.7);
+    }
+
+    #[test]
+    fn stitch_moves_odd_vertices_of_stitched_sides_only() {
+        let mut p = params([31.0, 31.0]);
+        p.boundary = [2, 4, 12, 14];
+        p.stitched = [true, true, false, true];
+        // Bottom (y = 4) and top (y = 14): odd offsets from x0 = 2 move down.
+        assert_eq!(p.stitch(3, 4), (2, 4));
+        assert_eq!(p.stitch(11, 14), (10, 14));
+        assert_eq!(p.stitch(4, 4), (4, 4));
+        // Left (x = 2): odd offsets from y0 = 4 move down; right is a map edge.
+        assert_eq!(p.stitch(2, 7), (2, 6));
+        assert_eq!(p.stitch(12, 7), (12, 7));
+        // Interior and corners stay.
+        assert_eq!(p.stitch(5, 7), (5, 7));
+        assert_eq!(p.stitch(2, 4), (2, 4));
+        p.enabled = false;
+        assert_eq!(p.stitch(3, 4), (3, 4));
     }
 }

@@ -232,7 +232,6 @@ impl GpuRenderer {
             ShapeId::FixupVertical,
             ShapeId::FixupHorizontal,
             ShapeId::Centre,
-            ShapeId::Ring,
         ];
         ids.extend((0..4).map(ShapeId::Trim));
         let mut corners: Vec<[i32; 2]> = vec![];
@@ -318,9 +317,9 @@ impl GpuRenderer {
                     draws.push((words, range));
                 };
                 match &mesh.geometry {
-                    LevelGeometry::Strips { strip, ring } => {
+                    LevelGeometry::Strips { strip } => {
                         let start = strips.len() as u32;
-                        for t in footprint::strip_to_triangles(strip).iter().chain(ring) {
+                        for t in footprint::strip_to_triangles(strip).iter() {
                             strips.extend_from_slice(t);
                         }
                         slot(mode, [0, 0], start..strips.len() as u32);

@@ -204,15 +204,37 @@ fn morph_alpha(x: i32, y: i32) -> f32 {
     return max(ax, ay);
 }
 
-// Level-window coordinates of the vertex a clipmap draw pulls.
+// Level-window coordinates of the vertex a clipmap draw pulls, after
+// stitching (MorphParams::stitch).
 fn local_coords(vid: u32) -> vec2<i32> {
     let n = D.level.z;
+    var c: vec2<i32>;
     if (D.level.w == 1) {
         let idx = strips[vid];
         let t = vec2<i32>(i32(idx % u32(n)), i32(idx / u32(n)));
-        return vec2<i32>(toroid(t.x - D.origin.z, n), toroid(t.y - D.origin.w, n));
+        c = vec2<i32>(toroid(t.x - D.origin.z, n), toroid(t.y - D.origin.w, n));
+    } else {
+        c = footprints[vid] + D.rel.zw;
     }
-    return footprints[vid] + D.rel.zw;
+    return stitch(c);
+}
+
+// Odd vertices on a stitched side move onto their even neighbour below.
+fn stitch(c: vec2<i32>) -> vec2<i32> {
+    if (D.flags.x == 0) {
+        return c;
+    }
+    let b = D.boundary;
+    let s = D.stitched;
+    let row = (s.y != 0 && c.y == b.y) || (s.w != 0 && c.y == b.w);
+    if (row && ((c.x - b.x) & 1) == 1) {
+        return vec2<i32>(c.x - 1, c.y);
+    }
+    let col = (s.x != 0 && c.x == b.x) || (s.z != 0 && c.x == b.z);
+    if (col && ((c.y - b.y) & 1) == 1) {
+        return vec2<i32>(c.x, c.y - 1);
+    }
+    return c;
 }
 
 struct Morphed {
