@@ -51,6 +51,13 @@ pub struct FrameInput<'a> {
 }
 
 impl Frame {
+    /// Non-finite values among the vertex stage's positions and varyings.
+    pub fn non_finite(&self) -> usize {
+        let bad = |v: &f32| !v.is_finite();
+        self.positions.iter().flatten().filter(|v| bad(v)).count()
+            + self.attrs.iter().filter(|v| bad(v)).count()
+    }
+
     /// Runs the vertex stage and the listed effects' precomputations, each
     /// as a timed pass.
     pub fn build(input: FrameInput, passes: &mut Passes) -> Result<Frame> {

@@ -32,6 +32,7 @@ pub mod report;
 pub mod scene;
 pub mod shade;
 pub mod stats;
+pub mod surface;
 pub mod tradeoff;
 pub mod vertex;
 pub mod views;

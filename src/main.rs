@@ -92,6 +92,23 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Height of the rendered surface at points and the first hits of rays,
+    /// from the very triangles a render of the scene's view draws (LOD,
+    /// morph and cell diagonals included). JSON: `points` [{x, y, height}],
+    /// `rays` [{origin, dir, t, point}]; null where nothing was drawn.
+    Height {
+        scene: Option<PathBuf>,
+        /// A world point X,Y (repeatable).
+        #[arg(long = "at", value_parser = parse_xy, allow_hyphen_values = true)]
+        at: Vec<[f64; 2]>,
+        /// A ray OX,OY,OZ,DX,DY,DZ (repeatable).
+        #[arg(long, value_parser = parse_ray, allow_hyphen_values = true)]
+        ray: Vec<[f64; 6]>,
+        #[command(flatten)]
+        args: SceneArgs,
+        #[arg(long)]
+        json: bool,
+    },
     /// Render scenes on both back ends and compare them pixel for pixel
     /// (exact on the pinned lavapipe, a stated tolerance elsewhere).
     #[cfg(feature = "gpu")]
@@ -217,6 +234,76 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// `n` comma-separated finite numbers.
+fn parse_numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let a: [f64; N] = v
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("need {N} comma-separated numbers, got {}", v.len()))?;
+    if a.iter().all(|x| x.is_finite()) {
+        Ok(a)
+    } else {
+        Err("values must be finite".into())
+    }
+}
+
+fn parse_xy(s: &str) -> Result<[f64; 2], String> {
+    parse_numbers::<2>(s)
+}
+
+fn parse_ray(s: &str) -> Result<[f64; 6], String> {
+    let r = parse_numbers::<6>(s)?;
+    if r[3..] == [0.0; 3] {
+        return Err("the ray direction must not be zero".into());
+    }
+    Ok(r)
+}
+
+/// The `height` command.
+fn height_cmd(
+    scene: &Option<PathBuf>,
+    at: &[[f64; 2]],
+    rays: &[[f64; 6]],
+    args: &SceneArgs,
+    json: bool,
+) -> anyhow::Result<()> {
+    use glam::DVec3;
+    let mut s = load_scene(scene)?;
+    s.apply(&args.overrides())?;
+    let mut session = render::Session::new(&s, &mut Default::default())?;
+    let surface = session.surface(&s.camera())?;
+    let points: Vec<_> = at
+        .iter()
+        .map(|&[x, y]| json!({"x": x, "y": y, "height": surface.height_at(x, y)}))
+        .collect();
+    let hits: Vec<_> = rays
+        .iter()
+        .map(|r| {
+            let (o, d) = (DVec3::new(r[0], r[1], r[2]), DVec3::new(r[3], r[4], r[5]));
+            let h = surface.ray_hit(o, d);
+            json!({"origin": [r[0], r[1], r[2]], "dir": [r[3], r[4], r[5]],
+                   "t": h.map(|h| h.t), "point": h.map(|h| h.point.to_array())})
+        })
+        .collect();
+    if json {
+        println!("{}", json!({"points": points, "rays": hits}));
+    } else {
+        for p in &points {
+            println!("height at ({}, {}): {}", p["x"], p["y"], p["height"]);
+        }
+        for h in &hits {
+            println!(
+                "ray from {} along {}: t = {}, hit {}",
+                h["origin"], h["dir"], h["t"], h["point"]
+            );
+        }
+    }
+    Ok(())
 }
 
 fn load_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
@@ -725,6 +812,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 );
             }
         }
+        Some(Cmd::Height {
+            scene,
+            at,
+            ray,
+            args,
+            json,
+        }) => height_cmd(&scene, &at, &ray, &args, json)?,
         None => {
             // The main job: render the embedded default scene.
             render_cmd(

@@ -58,6 +58,8 @@ pub struct RenderStats {
     pub passes: Vec<Pass>,
     pub ms_total: f64,
     pub non_finite_vertices: usize,
+    /// Non-finite values seen per stage; every stability test requires 0.
+    pub non_finite: NonFinite,
     pub levels_drawn: usize,
     pub raster: RasterStats,
     /// Rays traced for the lightmap (0 without `shadows`).
@@ -75,6 +77,17 @@ impl RenderStats {
             .map(|p| p.ms)
             .sum()
     }
+}
+
+/// Non-finite counts per pipeline stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct NonFinite {
+    /// Vertex-stage positions and varyings.
+    pub vertex: usize,
+    /// Clip coordinates in, and vertices the clipper made.
+    pub clip: usize,
+    /// Set-up planes and covered depths.
+    pub raster: usize,
 }
 
 /// Render settings that are not part of the scene.
@@ -242,6 +255,11 @@ pub fn stats(
         ms_total: passes.total_ms(),
         passes: passes.0,
         non_finite_vertices: raster.non_finite_vertices,
+        non_finite: NonFinite {
+            vertex: frame.non_finite(),
+            clip: raster.non_finite_vertices + raster.non_finite_clipped,
+            raster: raster.non_finite_planes + raster.non_finite_depth,
+        },
         levels_drawn: frame.mesh.level_info.iter().flatten().count(),
         raster,
         lightmap_rays: frame.resources.lightmap.as_ref().map_or(0, |l| l.rays),
@@ -268,6 +286,13 @@ impl Session {
         let (frame, _) = self.frame(camera, &mut passes)?;
         let (image, raster) = draw(&frame, opts, &mut passes);
         Ok((image, stats(&frame, "cpu", raster, passes)))
+    }
+
+    /// The surface `camera`'s frame draws, for `height_at` and `ray_hit`
+    /// (it updates the LOD for that camera, as a render would).
+    pub fn surface(&mut self, camera: &Camera) -> Result<crate::surface::Surface> {
+        let (frame, _) = self.frame(camera, &mut Passes::default())?;
+        Ok(crate::surface::Surface::new(&frame, &self.world))
     }
 
     /// Height of the base map at world point (x, y), nearest sample, in

@@ -19,6 +19,9 @@ use std::sync::Arc;
 /// The embedded default scene (procedural, no files needed).
 pub const DEFAULT_SCENE: &str = include_str!("default_scene.toml");
 
+/// Largest world coordinate accepted (metres).
+pub const MAX_COORDINATE: f64 = 1e12;
+
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
@@ -51,6 +54,10 @@ pub struct Terrain {
     pub cell_size: Option<CellSize>,
     #[serde(default = "one")]
     pub vertical_scale: f64,
+    /// World (x, y) of the map's north-west corner (metres); cameras are
+    /// given in the same world coordinates.
+    #[serde(default)]
+    pub origin: [f64; 2],
 }
 
 fn one() -> f64 {
@@ -211,6 +218,15 @@ impl Scene {
         if !(self.terrain.vertical_scale.is_finite() && self.terrain.vertical_scale > 0.0) {
             return Err(self.bad("terrain.vertical_scale", "must be finite and > 0"));
         }
+        // Beyond 10^12 m an f64 resolves only 0.1 mm: refuse rather than
+        // round silently.
+        let placeable = |v: &f64| v.is_finite() && v.abs() <= MAX_COORDINATE;
+        if !self.terrain.origin.iter().all(placeable) {
+            return Err(self.bad(
+                "terrain.origin",
+                format!("must be finite and within ±{MAX_COORDINATE:e} m"),
+            ));
+        }
         if let Some(c) = &self.terrain.cell_size {
             let [x, y] = cell_pair(c);
             if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
@@ -237,8 +253,11 @@ impl Scene {
             }
             _ => return Err(self.bad("camera", "give either 'look_at' or both 'yaw' and 'pitch'")),
         }
-        if !c.position.iter().all(|v| v.is_finite()) {
-            return Err(self.bad("camera.position", "must be finite"));
+        if !c.position.iter().all(placeable) {
+            return Err(self.bad(
+                "camera.position",
+                format!("must be finite and within ±{MAX_COORDINATE:e} m"),
+            ));
         }
         if !(c.fov > 0.0 && c.fov < 180.0) {
             return Err(self.bad("camera.fov", format!("must be in (0, 180), got {}", c.fov)));
@@ -279,7 +298,7 @@ impl Scene {
     }
 
     pub fn world(&self, h: &Heightmap) -> WorldMap {
-        WorldMap::new(h.cell_size, self.terrain.vertical_scale)
+        WorldMap::new(h.cell_size, self.terrain.vertical_scale).placed_at(self.terrain.origin)
     }
 
     /// The listed effects.

@@ -1,8 +1,10 @@
 //! Mapping between the base vertex grid and world space.
 //!
-//! World space is right-handed, z up: x = east = column × cell_x,
-//! y = north = −row × cell_y, z = height × vertical_scale. Positions are f64;
-//! rendering subtracts a floating origin before going to f32.
+//! World space is right-handed, z up: x = origin_x + column × cell_x,
+//! y = origin_y − row × cell_y, z = height × vertical_scale. Positions are
+//! f64; rendering subtracts a floating origin before going to f32, so a map
+//! placed 10^7 m from the world origin renders exactly as one placed at it
+//! (`tests/stability.rs`).
 
 use glam::DVec3;
 
@@ -12,6 +14,8 @@ pub struct WorldMap {
     pub cell: [f64; 2],
     /// Multiplier applied to heights.
     pub vertical_scale: f64,
+    /// World (x, y) of grid point (0, 0), the map's north-west corner.
+    pub origin: [f64; 2],
 }
 
 impl WorldMap {
@@ -19,21 +23,29 @@ impl WorldMap {
         WorldMap {
             cell,
             vertical_scale,
+            origin: [0.0; 2],
         }
+    }
+    /// The same map placed with its north-west corner at world (x, y).
+    pub fn placed_at(self, origin: [f64; 2]) -> Self {
+        WorldMap { origin, ..self }
     }
     /// World position of base-grid point (col, row) at height z.
     #[inline]
     pub fn to_world(&self, col: f64, row: f64, z: f64) -> DVec3 {
         DVec3::new(
-            col * self.cell[0],
-            -row * self.cell[1],
+            self.origin[0] + col * self.cell[0],
+            self.origin[1] - row * self.cell[1],
             z * self.vertical_scale,
         )
     }
     /// Base-grid (col, row) under a world position.
     #[inline]
     pub fn to_grid(&self, p: DVec3) -> [f64; 2] {
-        [p.x / self.cell[0], -p.y / self.cell[1]]
+        [
+            (p.x - self.origin[0]) / self.cell[0],
+            (self.origin[1] - p.y) / self.cell[1],
+        ]
     }
     /// World-space box of grid rectangle [c0,c1]×[r0,r1] extruded over
     /// heights [z0, z1].

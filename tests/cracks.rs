@@ -15,78 +15,7 @@
 
 mod common;
 use proptest::prelude::*;
-use std::collections::HashMap;
-use terraclip::clipmap::region::Rect;
-use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
-
-type Key = (i64, i64, u32);
-
-fn key(v: &MeshVertex) -> Key {
-    (v.x, v.y, v.zm.to_bits())
-}
-
-/// Returns a description of the first violation, or None if watertight.
-fn check(cm: &Clipmap) -> Option<String> {
-    let levels = cm.levels();
-    // Footprints draw full rings cut to the usable map; strips' active
-    // regions are already within it.
-    let outer: Rect = levels
-        .iter()
-        .rev()
-        .find_map(|l| l.regions.active)?
-        .intersect(&cm.level_bounds(0))?;
-    let mut edges: HashMap<(Key, Key), i32> = HashMap::new();
-    let mut area2: i128 = 0;
-    for mesh in cm.meshes(None) {
-        for t in cm.triangles(&mesh) {
-            let [a, b, c] = t;
-            let cross = (b.x - a.x) as i128 * (c.y - a.y) as i128
-                - (b.y - a.y) as i128 * (c.x - a.x) as i128;
-            if cross <= 0 {
-                return Some(format!(
-                    "non-positive triangle at level {}: {t:?}",
-                    mesh.level
-                ));
-            }
-            area2 += cross;
-            for (p, q) in [(a, b), (b, c), (c, a)] {
-                *edges.entry((key(&p), key(&q))).or_default() += 1;
-            }
-        }
-    }
-    if area2 != 2 * outer.cell_area() as i128 {
-        return Some(format!(
-            "area {} ≠ rendered area {}",
-            area2 as f64 / 2.0,
-            outer.cell_area()
-        ));
-    }
-    let mut perimeter = 0i64;
-    for (&(p, q), &count) in &edges {
-        if count != 1 {
-            return Some(format!("edge {p:?}→{q:?} used {count} times (overlap)"));
-        }
-        if edges.contains_key(&(q, p)) {
-            continue;
-        }
-        // Unmatched: must run along the outer perimeter, counter-clockwise in
-        // (column, row) space: top eastward, right southward, bottom
-        // westward, left northward.
-        let ok = (p.1 == outer.y0 && q.1 == outer.y0 && q.0 > p.0)
-            || (p.0 == outer.x1 && q.0 == outer.x1 && q.1 > p.1)
-            || (p.1 == outer.y1 && q.1 == outer.y1 && q.0 < p.0)
-            || (p.0 == outer.x0 && q.0 == outer.x0 && q.1 < p.1);
-        if !ok {
-            return Some(format!("unmatched interior edge {p:?}→{q:?}"));
-        }
-        perimeter += (q.0 - p.0).abs() + (q.1 - p.1).abs();
-    }
-    let want = 2 * (outer.width() + outer.height());
-    if perimeter != want {
-        return Some(format!("perimeter {perimeter} ≠ {want}"));
-    }
-    None
-}
+use terraclip::clipmap::{Clipmap, Layout};
 
 fn base(layout: Layout, n: i64) -> Clipmap {
     common::clipmap(&common::terrain(11, 700, 530), n, None, layout)
@@ -131,14 +60,14 @@ proptest! {
         let mut cm = cached(Layout::Strips, n);
         cm.update(prev);
         cm.update(v);
-        if let Some(e) = check(&cm) { return Err(TestCaseError::fail(e)); }
+        if let Some(e) = common::watertight(&cm) { return Err(TestCaseError::fail(e)); }
     }
 
     #[test]
     fn footprints_are_watertight((n, v) in cases(Layout::Footprints)) {
         let mut cm = cached(Layout::Footprints, n);
         cm.update(v);
-        if let Some(e) = check(&cm) { return Err(TestCaseError::fail(e)); }
+        if let Some(e) = common::watertight(&cm) { return Err(TestCaseError::fail(e)); }
     }
 
     /// α is 0 well inside, 1 on stitched boundaries (so z′ = z_c there), and
@@ -202,6 +131,6 @@ fn morph_off_leaves_cracks_that_the_check_finds() {
     };
     let mut cm = Clipmap::new(p, cfg).unwrap();
     cm.update([350.0, 260.0]);
-    let e = check(&cm).expect("morph off must not be watertight");
+    let e = common::watertight(&cm).expect("morph off must not be watertight");
     assert!(e.contains("unmatched") || e.contains("overlap"), "{e}");
 }

@@ -75,13 +75,16 @@ impl MorphParams {
     }
 }
 
-/// z′ = (1 − α)·z + α·z_c, evaluated without FMA.
+/// z′ = (1 − α)·z + α·z_c, evaluated without FMA, then held within
+/// [min(z, z_c), max(z, z_c)]: rounding alone can overshoot (z = z_c =
+/// 10 000 gave 10 000.001 in `tests/stability.rs`). `max` then `min` is
+/// WGSL's `clamp`, and never panics.
 #[inline]
 pub fn blend(z: f32, zc: f32, alpha: f32) -> f32 {
     let keep = 1.0 - alpha;
     let a = keep * z;
     let b = alpha * zc;
-    a + b
+    (a + b).max(z.min(zc)).min(z.max(zc))
 }
 
 /// The coarser level's surface height at fine vertex (x, y) (fine-level world

@@ -97,6 +97,9 @@ fn is_null(a: &WinVertex, b: &WinVertex, c: &WinVertex) -> bool {
 
 /// Clips one triangle whose vertices' outcodes OR to `mask` (non-zero, and
 /// not all outside one plane) and appends the fan triangles to `out`.
+/// Returns how many vertices it made with a non-finite clip or window
+/// coordinate (their fan triangles are dropped; the stability tests require
+/// the count to be 0).
 pub fn clip_triangle(
     tri: [&ClipVertex; 3],
     mut mask: u32,
@@ -104,7 +107,7 @@ pub fn clip_triangle(
     linear: &[bool],
     vp: &Viewport,
     out: &mut Vec<[ClipVertex; 3]>,
-) {
+) -> usize {
     // At most 3 + 6 vertices survive six planes; Mesa's bound is 25.
     let mut poly: Vec<ClipVertex> = tri.iter().map(|v| **v).collect();
     let mut next: Vec<ClipVertex> = Vec::with_capacity(12);
@@ -116,13 +119,13 @@ pub fn clip_triangle(
         let mut prev = poly[0];
         let mut dp_prev = distance(prev.clip, p);
         if !dp_prev.is_finite() {
-            return;
+            return poly.len();
         }
         for i in 1..=n {
             let vert = poly[i % n];
             let dp = distance(vert.clip, p);
             if !dp.is_finite() {
-                return;
+                return poly.len();
             }
             let different = if dp_prev >= 0.0 {
                 next.push(prev);
@@ -154,7 +157,14 @@ pub fn clip_triangle(
         std::mem::swap(&mut poly, &mut next);
     }
     if poly.len() < 3 {
-        return;
+        return 0;
+    }
+    let finite = |v: &ClipVertex| {
+        v.clip.iter().all(|c| c.is_finite()) && v.win.x.is_finite() && v.win.y.is_finite()
+    };
+    let bad = poly.iter().filter(|v| !finite(v)).count();
+    if bad > 0 {
+        return bad;
     }
     // Fan from the first vertex, skipping null triangles the way Mesa's
     // emit_poly does.
@@ -170,6 +180,7 @@ pub fn clip_triangle(
         any_real |= !null;
         out.push(t);
     }
+    0
 }
 
 #[cfg(test)]

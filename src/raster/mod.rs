@@ -82,6 +82,12 @@ pub struct RasterStats {
     pub rejected: usize,
     /// Triangles that needed the clipper.
     pub clipped: usize,
+    /// Vertices the clipper made with a non-finite coordinate.
+    pub non_finite_clipped: usize,
+    /// Set-up triangles whose depth or 1/w plane is not finite.
+    pub non_finite_planes: usize,
+    /// Covered pixels whose depth is not finite.
+    pub non_finite_depth: usize,
     /// Triangles after clipping that reached setup with non-zero area.
     pub setup: usize,
     /// Pixels covered in the end.
@@ -206,6 +212,7 @@ struct Chunk {
     planes: Vec<Plane>,
     rejected: usize,
     clipped: usize,
+    non_finite_clipped: usize,
 }
 
 /// Rasterises `mesh` into a `width`×`height` target.
@@ -264,7 +271,14 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
                     }
                 });
                 fan.clear();
-                clip::clip_triangle([&cv[0], &cv[1], &cv[2]], or, n, mesh.linear, &vp, &mut fan);
+                c.non_finite_clipped += clip::clip_triangle(
+                    [&cv[0], &cv[1], &cv[2]],
+                    or,
+                    n,
+                    mesh.linear,
+                    &vp,
+                    &mut fan,
+                );
                 for f in &fan {
                     let v = [&f[0].win, &f[1].win, &f[2].win];
                     let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
@@ -287,10 +301,16 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
     for c in chunks {
         stats.rejected += c.rejected;
         stats.clipped += c.clipped;
+        stats.non_finite_clipped += c.non_finite_clipped;
         tris.extend(c.tris);
         planes.extend(c.planes);
     }
     stats.setup = tris.len();
+    let finite = |p: &Plane| p.dadx.is_finite() && p.dady.is_finite() && p.a00.is_finite();
+    stats.non_finite_planes = tris
+        .iter()
+        .filter(|t| !(finite(&t.z) && finite(&t.oow)))
+        .count();
 
     let bins = bin::bin(&tris, width, height);
     let (tiles_x, _) = bin::grid(width, height);
@@ -329,6 +349,7 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
         }
     }
     stats.covered_pixels = prim.iter().filter(|&&p| p != NONE).count();
+    stats.non_finite_depth = depth.iter().filter(|d| !d.is_finite()).count();
     Raster {
         width,
         height,

@@ -1,8 +1,10 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+use std::collections::HashMap;
 use std::sync::Arc;
-use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout};
+use terraclip::clipmap::region::Rect;
+use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout, MeshVertex};
 use terraclip::heightmap::procedural::Procedural;
 use terraclip::heightmap::Heightmap;
 use terraclip::pyramid::{Filter, Pyramid};
@@ -52,4 +54,74 @@ height = 54
 
 pub fn small_scene() -> terraclip::scene::Scene {
     terraclip::scene::Scene::parse(SMALL_SCENE, "test scene", std::path::Path::new(".")).unwrap()
+}
+
+type Key = (i64, i64, u32);
+
+fn key(v: &MeshVertex) -> Key {
+    (v.x, v.y, v.zm.to_bits())
+}
+
+/// Returns a description of the first violation, or None if the mesh is
+/// watertight (see `tests/cracks.rs` for what is checked).
+pub fn watertight(cm: &Clipmap) -> Option<String> {
+    let levels = cm.levels();
+    // Footprints draw full rings cut to the usable map; strips' active
+    // regions are already within it.
+    let outer: Rect = levels
+        .iter()
+        .rev()
+        .find_map(|l| l.regions.active)?
+        .intersect(&cm.level_bounds(0))?;
+    let mut edges: HashMap<(Key, Key), i32> = HashMap::new();
+    let mut area2: i128 = 0;
+    for mesh in cm.meshes(None) {
+        for t in cm.triangles(&mesh) {
+            let [a, b, c] = t;
+            let cross = (b.x - a.x) as i128 * (c.y - a.y) as i128
+                - (b.y - a.y) as i128 * (c.x - a.x) as i128;
+            if cross <= 0 {
+                return Some(format!(
+                    "non-positive triangle at level {}: {t:?}",
+                    mesh.level
+                ));
+            }
+            area2 += cross;
+            for (p, q) in [(a, b), (b, c), (c, a)] {
+                *edges.entry((key(&p), key(&q))).or_default() += 1;
+            }
+        }
+    }
+    if area2 != 2 * outer.cell_area() as i128 {
+        return Some(format!(
+            "area {} ≠ rendered area {}",
+            area2 as f64 / 2.0,
+            outer.cell_area()
+        ));
+    }
+    let mut perimeter = 0i64;
+    for (&(p, q), &count) in &edges {
+        if count != 1 {
+            return Some(format!("edge {p:?}→{q:?} used {count} times (overlap)"));
+        }
+        if edges.contains_key(&(q, p)) {
+            continue;
+        }
+        // Unmatched: must run along the outer perimeter, counter-clockwise in
+        // (column, row) space: top eastward, right southward, bottom
+        // westward, left northward.
+        let ok = (p.1 == outer.y0 && q.1 == outer.y0 && q.0 > p.0)
+            || (p.0 == outer.x1 && q.0 == outer.x1 && q.1 > p.1)
+            || (p.1 == outer.y1 && q.1 == outer.y1 && q.0 < p.0)
+            || (p.0 == outer.x0 && q.0 == outer.x0 && q.1 < p.1);
+        if !ok {
+            return Some(format!("unmatched interior edge {p:?}→{q:?}"));
+        }
+        perimeter += (q.0 - p.0).abs() + (q.1 - p.1).abs();
+    }
+    let want = 2 * (outer.width() + outer.height());
+    if perimeter != want {
+        return Some(format!("perimeter {perimeter} ≠ {want}"));
+    }
+    None
 }

@@ -257,7 +257,7 @@ fn morphed(vid: u32) -> Morphed {
         zc = coarse_height(x, y, l + 1);
     }
     let keep = 1.0 - alpha;
-    let zm = keep * z + alpha * zc;
+    let zm = clamp(keep * z + alpha * zc, min(z, zc), max(z, zc));
     let p = vec3<f32>(
         f32(D.rel.x + lc.x * g) * G.cell.x,
         f32(D.rel.y - lc.y * g) * G.cell.y,

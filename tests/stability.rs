@@ -1,0 +1,602 @@
+//! Hard cases stay numerically stable (README "Hard cases we test"): far
+//! from the origin, toroids at ±2^30 texels and beyond, grazing views, the
+//! near plane, cliffs and extreme relief, camera jumps, many levels on tiny
+//! maps, and height queries against the rendered depth. Each test also
+//! shows the failure it guards against where one can be shown.
+
+mod common;
+use glam::{DVec3, DVec4};
+use proptest::prelude::*;
+use std::path::Path;
+use terraclip::camera::Camera;
+use terraclip::clipmap::toroid::Toroid;
+use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout};
+use terraclip::heightmap::Heightmap;
+use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::raster::{self, Mesh, Options, Path as RasterPath};
+use terraclip::render::{draw, RenderOptions, RenderStats, Session};
+use terraclip::scene::Scene;
+use terraclip::stats::Passes;
+use terraclip::surface::Surface;
+
+fn scene(text: &str) -> Scene {
+    Scene::parse(text, "stability", Path::new(".")).unwrap()
+}
+
+/// The small shared scene with another LOD scheme, placed at `offset`, its
+/// camera moved by the same amount.
+fn placed(lod: &str, offset: [f64; 2]) -> Scene {
+    let mut s = scene(common::SMALL_SCENE).with_lod(lod).unwrap();
+    s.terrain.origin = offset;
+    let c = &mut s.camera;
+    c.position = [
+        c.position[0] + offset[0],
+        c.position[1] + offset[1],
+        c.position[2],
+    ];
+    if let Some(t) = &mut c.look_at {
+        *t = [t[0] + offset[0], t[1] + offset[1], t[2]];
+    }
+    s.validate().unwrap();
+    s
+}
+
+fn assert_finite(stats: &RenderStats, what: &str) {
+    let n = stats.non_finite;
+    assert_eq!(
+        (n.vertex, n.clip, n.raster),
+        (0, 0, 0),
+        "{what}: non-finite values (vertex, clip, raster)"
+    );
+}
+
+/// Depth buffer of the naive pipeline: absolute world positions and an
+/// absolute view-projection, both rounded to f32, as a renderer without a
+/// floating origin would do.
+fn naive_depth(session: &mut Session, cam: &Camera) -> Vec<f32> {
+    let (frame, _) = session.frame(cam, &mut Passes::default()).unwrap();
+    let o = frame.uniforms.origin;
+    let base = session.world.to_world(o[0] as f64, o[1] as f64, 0.0);
+    let m = cam.view_projection();
+    let cols: Vec<[f32; 4]> = (0..4)
+        .map(|i| m.col(i).to_array().map(|v| v as f32))
+        .collect();
+    let clip: Vec<[f32; 4]> = frame
+        .positions
+        .iter()
+        .map(|p| {
+            let w = [0, 1, 2].map(|k| (base[k] + p[k] as f64) as f32);
+            [0, 1, 2, 3]
+                .map(|k| ((cols[3][k] + cols[2][k] * w[2]) + cols[1][k] * w[1]) + cols[0][k] * w[0])
+        })
+        .collect();
+    let tris: Vec<[u32; 3]> = (0..frame.triangle_count() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    let mesh = Mesh {
+        clip: &clip,
+        attrs: &frame.attrs,
+        linear: &frame.layout.linear,
+        triangles: &tris,
+        flat: &frame.mesh.levels,
+    };
+    raster::rasterise(&mesh, frame.width, frame.height, &Options::default()).depth
+}
+
+#[test]
+fn far_from_the_origin_renders_bit_identically() {
+    let offsets = [1e4, -1e4, 1e6, -1e6, 1e7, -1e7];
+    for lod in ["clipmap", "brute-force", "geomipmap", "cdlod"] {
+        let s0 = placed(lod, [0.0, 0.0]);
+        let (img0, st0) = terraclip::render::render(&s0, &RenderOptions::default()).unwrap();
+        assert_finite(&st0, lod);
+        for &d in &offsets {
+            let s = placed(lod, [d, 0.5 * d]);
+            let (img, st) = terraclip::render::render(&s, &RenderOptions::default()).unwrap();
+            assert_finite(&st, lod);
+            assert!(img.rgba == img0.rgba, "{lod} at offset {d}: colour differs");
+            let bits = |v: &[f32]| v.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+            assert!(
+                bits(&img.depth) == bits(&img0.depth),
+                "{lod} at offset {d}: depth differs"
+            );
+        }
+    }
+    // The naive pipeline on the same views: absolute f32 jitters.
+    let differing = |d: f64| {
+        let mut a = Session::new(&placed("clipmap", [0.0, 0.0]), &mut Passes::default()).unwrap();
+        let mut b = Session::new(&placed("clipmap", [d, 0.5 * d]), &mut Passes::default()).unwrap();
+        let ca = placed("clipmap", [0.0, 0.0]).camera();
+        let cb = placed("clipmap", [d, 0.5 * d]).camera();
+        let (za, zb) = (naive_depth(&mut a, &ca), naive_depth(&mut b, &cb));
+        za.iter()
+            .zip(&zb)
+            .filter(|(p, q)| p.to_bits() != q.to_bits())
+            .count()
+    };
+    let (at_1e6, at_1e7) = (differing(1e6), differing(1e7));
+    let pixels = 96 * 54;
+    assert!(
+        at_1e6 > pixels / 4,
+        "naive f32 at 1e6 m: only {at_1e6} px differ"
+    );
+    assert!(
+        at_1e7 > pixels / 2,
+        "naive f32 at 1e7 m: only {at_1e7} px differ"
+    );
+}
+
+fn value(x: i64, y: i64) -> i64 {
+    x.wrapping_mul(1_000_003) ^ y.wrapping_mul(7919)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    /// Toroid windows at ±2^30 texels (and ±2^40, for margin) wrap without
+    /// overflow: after any walk the window holds exactly the values of its
+    /// world cells, and every index is in range.
+    #[test]
+    fn toroids_wrap_at_plus_minus_2_pow_30(
+        s in 1usize..64,
+        sign in prop::sample::select(vec![[1i64, 1], [1, -1], [-1, 1], [-1, -1]]),
+        big in prop::sample::select(vec![1i64 << 30, 1 << 40]),
+        start in [-70i64..70, -70i64..70],
+        steps in prop::collection::vec([-80i64..=80, -80i64..=80], 1..12),
+    ) {
+        let mut t = Toroid::<i64>::new(s);
+        let mut o = [sign[0] * big + start[0], sign[1] * big + start[1]];
+        for d in std::iter::once([0, 0]).chain(steps) {
+            o = [o[0] + d[0], o[1] + d[1]];
+            t.move_to(o, value);
+            for y in o[1]..o[1] + s as i64 {
+                for x in o[0]..o[0] + s as i64 {
+                    prop_assert!(t.index(x, y) < s * s);
+                    prop_assert_eq!(t.get(x, y), value(x, y));
+                }
+            }
+        }
+    }
+}
+
+/// A flat plane (amplitude 0) seen from 0.5 m above at pitch `pitch`.
+fn grazing(pitch: f64) -> Scene {
+    let mut s = scene(
+        r#"effects = ["morph", "lambert", "fog"]
+[terrain]
+procedural = { seed = 1, width = 513, height = 513, amplitude = 0.0 }
+cell_size = 10.0
+[lod]
+n = 31
+[camera]
+position = [2560.0, -2560.0, 0.5]
+yaw = 30.0
+pitch = 0.0
+near = 0.1
+far = 50000.0
+[image]
+width = 160
+height = 120
+"#,
+    );
+    s.camera.pitch = Some(pitch);
+    s.validate().unwrap();
+    s
+}
+
+#[test]
+fn grazing_views_have_no_non_finite_values_and_monotone_depth() {
+    for pitch in [0.0, 89.9, -89.9, 45.0, -0.01] {
+        let s = grazing(pitch);
+        let (img, st) = terraclip::render::render(&s, &RenderOptions::default()).unwrap();
+        assert_finite(&st, &format!("pitch {pitch}"));
+        if pitch == 0.0 {
+            // The plane fills the lower half; depth grows toward the horizon.
+            let (w, h) = (img.width as usize, img.height as usize);
+            let mut covered = 0;
+            for x in 0..w {
+                let mut last = 0.0f32;
+                for y in (0..h).rev() {
+                    let d = img.depth[y * w + x];
+                    if d < 1.0 {
+                        covered += 1;
+                        assert!(d >= last, "column {x}: depth {d} after {last} at row {y}");
+                        last = d;
+                    }
+                }
+            }
+            assert!(covered > w * h / 3, "only {covered} px of plane");
+        }
+    }
+}
+
+/// Eye-space triangle → clip space through a perspective with near `n`.
+fn project(p: DVec3, n: f64, far: f64, aspect: f64) -> [f32; 4] {
+    let f = 1.0 / (30f64.to_radians()).tan();
+    let r = far / (n - far);
+    let c = DVec4::new(f / aspect * p.x, f * p.y, r * p.z + r * n, -p.z);
+    c.to_array().map(|v| v as f32)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(400))]
+
+    /// Triangles across the near plane, with vertices at w = 0 exactly, at
+    /// w = ±1e-30 and behind the eye, are clipped without NaN or infinity,
+    /// and every pixel they cover is within one pixel of where an f64 ray
+    /// cast says the visible part is.
+    #[test]
+    fn near_plane_clipping_is_finite_and_has_no_stray_pixels(
+        v in prop::collection::vec([-30.0f64..30.0, -30.0f64..30.0, -40.0f64..5.0], 3),
+        special in prop::sample::select(vec![0.0f64, 1e-30, -1e-30, 0.05, -3.0]),
+        which in 0usize..3,
+    ) {
+        let (w, h, near, far) = (64u32, 48u32, 0.1, 100.0);
+        let aspect = w as f64 / h as f64;
+        let mut p: Vec<DVec3> = v.iter().map(|a| DVec3::new(a[0], a[1], a[2])).collect();
+        p[which].z = special;
+        let clip: Vec<[f32; 4]> = p.iter().map(|&q| project(q, near, far, aspect)).collect();
+        let mesh = Mesh { clip: &clip, attrs: &[], linear: &[], triangles: &[[0, 1, 2]], flat: &[0] };
+        for path in [RasterPath::Scalar, RasterPath::Simd] {
+            let r = raster::rasterise(&mesh, w, h, &Options { path });
+            let st = &r.stats;
+            prop_assert_eq!((st.non_finite_clipped, st.non_finite_planes, st.non_finite_depth), (0, 0, 0));
+            // f64 reference: the pixel ray hits the triangle between near and far.
+            let f = 1.0 / (30f64.to_radians()).tan();
+            let hit = |px: i64, py: i64| -> bool {
+                if px < 0 || py < 0 || px >= w as i64 || py >= h as i64 {
+                    return false;
+                }
+                let xn = (px as f64 + 0.5) / w as f64 * 2.0 - 1.0;
+                let yn = 1.0 - (py as f64 + 0.5) / h as f64 * 2.0;
+                let d = DVec3::new(xn * aspect / f, yn / f, -1.0);
+                let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+                let q = d.cross(e2);
+                let det = e1.dot(q);
+                if det.abs() < 1e-300 {
+                    return false;
+                }
+                let s = -p[0];
+                let u = s.dot(q) / det;
+                let qq = s.cross(e1);
+                let vv = d.dot(qq) / det;
+                let t = e2.dot(qq) / det;
+                u >= -1e-9 && vv >= -1e-9 && u + vv <= 1.0 + 1e-9 && t >= near * 0.999 && t <= far * 1.001
+            };
+            for py in 0..h as i64 {
+                for px in 0..w as i64 {
+                    if r.prim[(py * w as i64 + px) as usize] == raster::NONE {
+                        continue;
+                    }
+                    let near_ok = (-1..=1).any(|dy| (-1..=1).any(|dx| hit(px + dx, py + dy)));
+                    prop_assert!(near_ok, "stray pixel ({px}, {py}) for {p:?}");
+                }
+            }
+        }
+    }
+}
+
+/// A clipmap over `map` with every level, morph on.
+fn clipmap_of(map: &Heightmap, n: i64) -> Clipmap {
+    let count = terraclip::clipmap::region::max_levels(map.width(), map.height(), n);
+    let p = std::sync::Arc::new(Pyramid::build(map, Filter::SincBlackman { taps: 7 }, count));
+    Clipmap::new(
+        p,
+        ClipmapConfig {
+            n,
+            levels: Some(count),
+            ..ClipmapConfig::default()
+        },
+    )
+    .unwrap()
+}
+
+fn relief(kind: &str, w: usize) -> Heightmap {
+    let v: Vec<f32> = (0..w * w)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            match kind {
+                "step" => {
+                    if x < w / 2 {
+                        0.0
+                    } else {
+                        10_000.0
+                    }
+                }
+                "spikes" => {
+                    if (x * 7 + y * 13) % 37 == 0 {
+                        5_000.0
+                    } else {
+                        0.0
+                    }
+                }
+                _ => {
+                    if (x / 3 + y / 5) % 2 == 0 {
+                        1e5
+                    } else {
+                        -1e5
+                    }
+                }
+            }
+        })
+        .collect();
+    Heightmap::from_values(w, w, v, None, [10.0, 10.0], "test").unwrap()
+}
+
+#[test]
+fn cliffs_and_extreme_relief_morph_within_bounds() {
+    for kind in ["step", "spikes", "pm1e5"] {
+        let map = relief(kind, 257);
+        let mut cm = clipmap_of(&map, 31);
+        for v in [[128.3, 128.9], [40.0, 200.5], [129.0, 7.25]] {
+            cm.update(v);
+            for mesh in cm.meshes(None) {
+                for t in cm.triangles(&mesh) {
+                    for p in t {
+                        let (lo, hi) = (p.z.min(p.zc), p.z.max(p.zc));
+                        assert!((0.0..=1.0).contains(&p.alpha), "{kind}: α = {}", p.alpha);
+                        assert!(
+                            p.zm >= lo && p.zm <= hi,
+                            "{kind}: {} outside [{lo}, {hi}]",
+                            p.zm
+                        );
+                    }
+                }
+            }
+            assert_eq!(common::watertight(&cm), None, "{kind}");
+        }
+    }
+}
+
+#[test]
+fn cliff_normals_are_finite_and_unit() {
+    let dir = std::env::temp_dir().join(format!("terraclip-cliff-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for kind in ["step", "spikes", "pm1e5"] {
+        let map = relief(kind, 129);
+        let mut text =
+            String::from("ncols 129\nnrows 129\nxllcorner 0\nyllcorner 0\ncellsize 10\n");
+        for y in 0..129 {
+            let row: Vec<String> = (0..129).map(|x| map.get(x, y).to_string()).collect();
+            text += &(row.join(" ") + "\n");
+        }
+        std::fs::write(dir.join(format!("{kind}.asc")), text).unwrap();
+        for lod in ["clipmap", "brute-force"] {
+            let s = Scene::parse(
+                &format!(
+                    r#"effects = ["morph", "lambert"]
+[terrain]
+file = "{kind}.asc"
+[lod]
+scheme = "{lod}"
+n = 15
+[camera]
+position = [200.0, -200.0, 30000.0]
+look_at = [640.0, -640.0, 0.0]
+far = 300000.0
+[image]
+width = 64
+height = 48
+"#
+                ),
+                "cliff",
+                &dir,
+            )
+            .unwrap();
+            let mut session = Session::new(&s, &mut Passes::default()).unwrap();
+            let (frame, _) = session.frame(&s.camera(), &mut Passes::default()).unwrap();
+            let o = frame.layout.normal.expect("lambert uses vertex normals");
+            let k = frame.layout.len();
+            for a in frame.attrs.chunks(k) {
+                let nrm = &a[o..o + 3];
+                let len = nrm.iter().map(|c| c * c).sum::<f32>().sqrt();
+                assert!(nrm.iter().all(|c| c.is_finite()), "{kind}/{lod}: {nrm:?}");
+                assert!((len - 1.0).abs() < 1e-5, "{kind}/{lod}: |n| = {len}");
+            }
+            let (_, st) = draw(&frame, &RenderOptions::default(), &mut Passes::default());
+            assert_eq!(
+                st.non_finite_vertices + st.non_finite_clipped + st.non_finite_planes,
+                0
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn camera_jumps_leave_a_fresh_watertight_clipmap() {
+    let map = common::terrain(7, 257, 257);
+    for layout in [Layout::Strips, Layout::Footprints] {
+        let n = 31.0;
+        let mut cm = common::clipmap(&map, 31, None, layout);
+        let mut v = [100.25, 140.5];
+        cm.update(v);
+        for jump in [
+            [1.0, 0.0],
+            [0.0, -1.0],
+            [n, 0.0],
+            [-n, n],
+            [1e6, 0.0],
+            [-1e6, -1e6],
+            [1e6, 1e6],
+        ] {
+            v = [v[0] + jump[0], v[1] + jump[1]];
+            cm.update(v);
+            let mut fresh = common::clipmap(&map, 31, None, layout);
+            fresh.update(v);
+            for (a, b) in cm.levels().iter().zip(fresh.levels()) {
+                assert_eq!(a.heights.origin(), b.heights.origin(), "jump {jump:?}");
+                assert_eq!(a.heights.texels(), b.heights.texels(), "jump {jump:?}");
+                assert_eq!(a.regions, b.regions, "jump {jump:?}");
+            }
+            assert_eq!(common::watertight(&cm), None, "jump {jump:?} ({layout:?})");
+        }
+    }
+}
+
+#[test]
+fn many_levels_on_tiny_and_thin_maps() {
+    // A 1×N map has no cells to draw: refused with the reason.
+    for (w, h) in [(1usize, 300usize), (300, 1), (1, 1), (0, 0), (0, 5)] {
+        let e = Heightmap::from_values(w, h, vec![0.0; w * h], None, [1.0, 1.0], "test");
+        let e = e.unwrap_err();
+        assert!(
+            e.contains("2×2") || e.contains("zero-sized"),
+            "{w}×{h}: {e}"
+        );
+    }
+    let maps = [
+        (8usize, 8usize),
+        (2, 300),
+        (300, 2),
+        (2, 2),
+        (3, 1000),
+        (8, 5),
+    ];
+    for (w, h) in maps {
+        let values: Vec<f32> = (0..w * h).map(|i| (i % 7) as f32).collect();
+        let map = Heightmap::from_values(w, h, values, None, [1.0, 1.0], "test").unwrap();
+        for levels in 1..=16usize {
+            let p = std::sync::Arc::new(Pyramid::build(&map, Filter::Box, levels));
+            let made = Clipmap::new(
+                p,
+                ClipmapConfig {
+                    n: 15,
+                    levels: Some(levels),
+                    ..ClipmapConfig::default()
+                },
+            );
+            let Ok(mut cm) = made else {
+                // Refused with a reason, never a panic.
+                let e = made.unwrap_err().to_string();
+                assert!(e.contains("level"), "{w}×{h}, L = {levels}: {e}");
+                continue;
+            };
+            for v in [
+                [0.0, 0.0],
+                [w as f64, h as f64],
+                [-1e9, 1e9],
+                [0.5 * w as f64, 0.5 * h as f64],
+            ] {
+                cm.update(v);
+                for lv in cm.levels().iter().filter(|l| l.is_active()) {
+                    let a = lv.regions.active.expect("active level has a region");
+                    assert!(
+                        a.cell_area() > 0,
+                        "{w}×{h}, L = {levels}: empty active region"
+                    );
+                }
+                assert_eq!(
+                    common::watertight(&cm),
+                    None,
+                    "{w}×{h}, L = {levels}, viewer {v:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Back-projects pixel (px, py) at depth `z` through the camera-relative
+/// transform the frame used; returns the world point and the ray direction.
+fn unproject(
+    session: &Session,
+    cam: &Camera,
+    size: [u32; 2],
+    px: u32,
+    py: u32,
+    z: f32,
+) -> (DVec3, DVec3) {
+    let u = terraclip::vertex::VertexUniforms::new(cam, &session.world);
+    let o = session
+        .world
+        .to_world(u.origin[0] as f64, u.origin[1] as f64, 0.0);
+    let rel = Camera {
+        eye: cam.eye - o,
+        target: cam.target - o,
+        ..*cam
+    };
+    let inv = rel.view_projection().inverse();
+    let xn = (px as f64 + 0.5) / size[0] as f64 * 2.0 - 1.0;
+    let yn = 1.0 - (py as f64 + 0.5) / size[1] as f64 * 2.0;
+    let p = inv * DVec4::new(xn, yn, z as f64, 1.0);
+    let point = p.truncate() / p.w + o;
+    (point, (point - cam.eye).normalize())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// `height_at` and `ray_hit` agree with the rasteriser's depth at random
+    /// pixels, back-projected, within 4 depth ULP expressed in metres along
+    /// the ray (times 1 + the local slope for heights). A bilinear lookup in
+    /// the heightmap does not: it misses by many times that wherever the
+    /// cell's diagonal matters.
+    #[test]
+    fn height_queries_match_the_rendered_depth(
+        lod in prop::sample::select(vec!["brute-force", "clipmap", "geomipmap", "roam"]),
+        view in 0usize..200,
+    ) {
+        let s = scene(common::SMALL_SCENE).with_lod(lod).unwrap();
+        let mut session = Session::new(&s, &mut Passes::default()).unwrap();
+        let cam = terraclip::views::random_views(&session, &s.camera(), view + 1, 0xD1A6)[view];
+        let (frame, _) = session.frame(&cam, &mut Passes::default()).unwrap();
+        let (img, st) = draw(&frame, &RenderOptions::default(), &mut Passes::default());
+        prop_assert_eq!(st.non_finite_vertices + st.non_finite_clipped + st.non_finite_planes, 0);
+        let surface = Surface::new(&frame, &session.world);
+        let size = [img.width, img.height];
+        let base = &session.pyramid.levels[0];
+        let (mut checked, mut bilinear_off, mut agree) = (0, 0, 0);
+        for py in 0..img.height {
+            for px in 0..img.width {
+                let z = img.depth[(py * img.width + px) as usize];
+                if z >= 1.0 || (px * 7 + py * 3) % 5 != 0 {
+                    continue;
+                }
+                let (p, dir) = unproject(&session, &cam, size, px, py, z);
+                // 4 depth ULP in metres along the ray at this depth.
+                let step = f32::from_bits(z.to_bits() + 4) - z;
+                let (q, _) = unproject(&session, &cam, size, px, py, (z + step).min(1.0));
+                let along = (q - p).length() + 1e-4;
+                let h = surface.height_at(p.x, p.y);
+                prop_assert!(h.is_some(), "{lod}: nothing drawn under pixel ({px}, {py})");
+                let h = h.unwrap();
+                let e = 0.5;
+                let slope = ((surface.height_at(p.x + e, p.y).unwrap_or(h) - h).abs()
+                    + (surface.height_at(p.x, p.y + e).unwrap_or(h) - h).abs()) / e;
+                let tol = along * (1.0 + slope);
+                prop_assert!((p.z - h).abs() <= tol,
+                    "{lod}: pixel ({px}, {py}) depth point z {} vs height_at {h} (tol {tol})", p.z);
+                // The ray's first hit lies on the surface; it agrees with the
+                // depth except where the pixel centre grazes a silhouette
+                // that snapping (1/256 px) put on the other side.
+                if let Some(hit) = surface.ray_hit(cam.eye, dir) {
+                    let q = hit.point;
+                    let hq = surface.height_at(q.x, q.y).unwrap_or(f64::NAN);
+                    prop_assert!(
+                        (q.z - hq).abs() <= 1e-6 * (1.0 + q.z.abs()),
+                        "{lod}: ray hit {q:?} off the surface ({hq})"
+                    );
+                    agree += usize::from((hit.t - (p - cam.eye).length()).abs() <= along);
+                }
+                checked += 1;
+                let g = session.world.to_grid(p);
+                let bl = bilinear(base, g[0], g[1]) * session.world.vertical_scale;
+                if (bl - p.z).abs() > 10.0 * tol {
+                    bilinear_off += 1;
+                }
+            }
+        }
+        prop_assert!(checked > 50, "{lod}: only {checked} pixels checked");
+        prop_assert!(agree * 100 >= checked * 97, "{lod}: ray_hit agrees on {agree}/{checked}");
+        if lod == "brute-force" {
+            prop_assert!(bilinear_off * 50 > checked, "bilinear matched too often: {bilinear_off}/{checked}");
+        }
+    }
+}
+
+fn bilinear(m: &terraclip::pyramid::PyramidLevel, x: f64, y: f64) -> f64 {
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let g = |dx: i64, dy: i64| m.get_clamped(x0 as i64 + dx, y0 as i64 + dy) as f64;
+    (g(0, 0) * (1.0 - fx) + g(1, 0) * fx) * (1.0 - fy) + (g(0, 1) * (1.0 - fx) + g(1, 1) * fx) * fy
+}
