@@ -251,3 +251,99 @@ fn bad_scenes_are_clean_errors() {
     rejects("key.toml", &text, "unknown field `zoom`");
     assert!(!out.exists(), "no output is written on error");
 }
+
+/// Outputs are written to a temporary file and renamed: a render killed at
+/// any moment, or one whose write fails, leaves the previous file intact.
+#[test]
+fn killed_or_failed_renders_leave_the_previous_output_intact() {
+    use std::time::Duration;
+    let out = tmp("kept.png");
+    let old = image::GrayImage::from_fn(3, 2, |x, _| image::Luma([x as u8]));
+    old.save(&out).unwrap();
+    let before = std::fs::read(&out).unwrap();
+    let mut replaced = 0;
+    for ms in [30u64, 150, 400, 800, 1200, 1600, 2200, 3000] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .args([
+                "render",
+                "--size",
+                "1600x1200",
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(ms));
+        let _ = child.kill();
+        let _ = child.wait();
+        let now = std::fs::read(&out).unwrap();
+        if now != before {
+            // Replaced: then it is the whole new image, never a prefix.
+            let img = image::load_from_memory(&now).expect("complete PNG");
+            assert_eq!((img.width(), img.height()), (1600, 1200), "after {ms} ms");
+            replaced += 1;
+            std::fs::write(&out, &before).unwrap();
+        }
+    }
+    println!("kill test: {replaced} of 8 renders finished before the kill");
+    // A write that fails (the target is a directory): error, nothing lost,
+    // no temporary file left beside it.
+    let target = tmp("a-directory.png");
+    std::fs::create_dir_all(&target).unwrap();
+    std::fs::write(target.join("inside"), b"keep").unwrap();
+    let (code, _, err) = cli(&[
+        "render",
+        "--size",
+        "64x48",
+        "--out",
+        target.to_str().unwrap(),
+    ]);
+    assert_ne!(code, 0);
+    assert!(
+        err.contains("a-directory.png") && !err.contains("panicked"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(target.join("inside")).unwrap(), b"keep");
+    let parent = target.parent().unwrap();
+    let leftovers: Vec<_> = std::fs::read_dir(parent)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .map(|e| e.file_name())
+        .collect();
+    // Killed renders may leave their own temporary file; a failed write
+    // must remove its one.
+    assert!(
+        !leftovers
+            .iter()
+            .any(|n| n.to_string_lossy().starts_with(".a-directory.png")),
+        "{leftovers:?}"
+    );
+}
+
+/// Printing into a closed pipe (`terraclip … | head`) ends the process
+/// quietly instead of panicking.
+#[test]
+fn a_closed_stdout_pipe_is_not_a_panic() {
+    let mut args = vec!["height".to_string()];
+    for i in 0..3000 {
+        args.push("--at".into());
+        args.push(format!("{},{}", 5000 + i, -5000 - i));
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(&args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        !out.status.success(),
+        "the write into the closed pipe must end it"
+    );
+}

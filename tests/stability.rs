@@ -116,6 +116,9 @@ fn far_from_the_origin_renders_bit_identically() {
     };
     let (at_1e6, at_1e7) = (differing(1e6), differing(1e7));
     let pixels = 96 * 54;
+    println!(
+        "naive absolute f32: {at_1e6} px of depth differ at 1e6 m, {at_1e7} at 1e7 m, of {pixels}"
+    );
     assert!(
         at_1e6 > pixels / 4,
         "naive f32 at 1e6 m: only {at_1e6} px differ"
@@ -588,6 +591,7 @@ proptest! {
         }
         prop_assert!(checked > 50, "{lod}: only {checked} pixels checked");
         prop_assert!(agree * 100 >= checked * 97, "{lod}: ray_hit agrees on {agree}/{checked}");
+        println!("{lod} view {view}: {checked} px, height_at all within tolerance, ray_hit {agree} agree, bilinear off by >10 tol at {bilinear_off}");
         if lod == "brute-force" {
             prop_assert!(bilinear_off * 50 > checked, "bilinear matched too often: {bilinear_off}/{checked}");
         }

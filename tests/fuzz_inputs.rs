@@ -1,0 +1,341 @@
+//! Malformed input, ≥ 10,000 cases in one bounded run: valid PNG (8 and
+//! 16 bit), TGA, TIFF (f32, u16), ASCII-grid, raw f32 + JSON sidecar files
+//! and scene files are truncated, bit-flipped, given absurd header sizes
+//! (decompression bombs), NaN/inf/no-data patterns and wrong types. Every
+//! case must either load, or fail with a typed error that names the file;
+//! none may panic. The run prints its case count and time (README "Hard
+//! cases we test").
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use terraclip::heightmap::Heightmap;
+use terraclip::scene::Scene;
+
+/// xorshift64*: the harness must be reproducible.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("terraclip-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Byte-level mutations: truncation, bit flips, 32-bit fields overwritten
+/// with extreme values (huge sizes in headers), appended garbage.
+fn mutate(rng: &mut Rng, seed: &[u8]) -> Vec<u8> {
+    let mut b = seed.to_vec();
+    for _ in 0..1 + rng.below(3) {
+        match rng.below(5) {
+            0 => {
+                let n = rng.below(b.len() + 1);
+                b.truncate(n);
+            }
+            1 => {
+                for _ in 0..1 + rng.below(8) {
+                    if !b.is_empty() {
+                        let i = rng.below(b.len());
+                        b[i] ^= 1 << rng.below(8);
+                    }
+                }
+            }
+            2 => {
+                // Header fields are near the start: aim there half the time.
+                let span = if rng.below(2) == 0 {
+                    b.len().min(64)
+                } else {
+                    b.len()
+                };
+                if span >= 4 {
+                    let i = rng.below(span - 3);
+                    let v: u32 = [u32::MAX, 0x7FFF_FFFF, 0, 0x0001_0000, 65_535][rng.below(5)];
+                    let bytes = if rng.below(2) == 0 {
+                        v.to_be_bytes()
+                    } else {
+                        v.to_le_bytes()
+                    };
+                    b[i..i + 4].copy_from_slice(&bytes);
+                }
+            }
+            3 => {
+                let n = rng.below(64);
+                b.extend((0..n).map(|_| rng.next() as u8));
+            }
+            _ => {
+                if !b.is_empty() {
+                    let i = rng.below(b.len());
+                    b[i] = rng.next() as u8;
+                }
+            }
+        }
+    }
+    b
+}
+
+/// Token-level mutations of text files: numbers become NaN, inf, huge,
+/// negative or no-data values, strings and keys change type or vanish.
+fn mutate_text(rng: &mut Rng, seed: &str) -> String {
+    let mut tokens: Vec<String> = seed
+        .split_inclusive(|c: char| c.is_whitespace() || c == ',' || c == '=')
+        .map(String::from)
+        .collect();
+    let swaps = [
+        "nan",
+        "inf",
+        "-inf",
+        "1e400",
+        "-1",
+        "0",
+        "16",
+        "1e12",
+        "NaN",
+        "\"x\"",
+        "[]",
+        "true",
+        "-9999",
+        "4294967297",
+        "18446744073709551617",
+        "{}",
+        "",
+        "0.0",
+        "2.5",
+    ];
+    for _ in 0..1 + rng.below(3) {
+        let i = rng.below(tokens.len());
+        let tail: String = tokens[i]
+            .chars()
+            .rev()
+            .take_while(|c| c.is_whitespace() || *c == ',' || *c == '=')
+            .collect();
+        let tail: String = tail.chars().rev().collect();
+        tokens[i] = match rng.below(4) {
+            0 => tail,
+            _ => format!("{}{tail}", swaps[rng.below(swaps.len())]),
+        };
+    }
+    let mut s: String = tokens.concat();
+    if rng.below(4) == 0 {
+        let n = rng.below(s.len() + 1);
+        s = s.chars().take(n).collect();
+    }
+    s
+}
+
+fn png16(path: &Path) {
+    image::ImageBuffer::<image::Luma<u16>, _>::from_fn(17, 11, |x, y| {
+        image::Luma([(x * 977 + y * 131) as u16])
+    })
+    .save(path)
+    .unwrap();
+}
+
+fn seeds(d: &Path) -> Vec<(&'static str, Vec<u8>)> {
+    use tiff::encoder::{colortype, TiffEncoder};
+    let (w, h) = (9u32, 7u32);
+    let mut out = vec![];
+    let p = d.join("seed16.png");
+    png16(&p);
+    out.push(("png", std::fs::read(&p).unwrap()));
+    let p = d.join("seed8.png");
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([(x * 20 + y) as u8]))
+        .save(&p)
+        .unwrap();
+    out.push(("png", std::fs::read(&p).unwrap()));
+    let p = d.join("seed.tga");
+    image::GrayImage::from_fn(w, h, |x, y| image::Luma([(x + y * 9) as u8]))
+        .save(&p)
+        .unwrap();
+    out.push(("tga", std::fs::read(&p).unwrap()));
+    let f: Vec<f32> = (0..w * h).map(|i| i as f32 * 0.5).collect();
+    let p = d.join("seed.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+    enc.write_image::<colortype::Gray32Float>(w, h, &f).unwrap();
+    out.push(("tif", std::fs::read(&p).unwrap()));
+    let u: Vec<u16> = (0..w * h).map(|i| (i * 300) as u16).collect();
+    let p = d.join("seed16.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+    enc.write_image::<colortype::Gray16>(w, h, &u).unwrap();
+    out.push(("tif", std::fs::read(&p).unwrap()));
+    out
+}
+
+const ASC: &str = "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\nNODATA_value -9999\n1 2 3 4\n5 -9999 7 8\n9 10 11 12\n";
+const SIDECAR: &str = r#"{"width": 4, "height": 3, "cell_size_m": {"x": 10.0, "y": 20.0}, "nodata": -32768.0, "raw_offset_m": 100.0, "raw_scale_m_per_unit": 2.0}"#;
+const SCENE: &str = r#"effects = ["morph", "lambert", "fog"]
+[terrain]
+procedural = { seed = 5, width = 65, height = 65, amplitude = 500.0, wavelength = 64.0 }
+cell_size = 10.0
+vertical_scale = 1.0
+origin = [1000.0, -2000.0]
+[pyramid]
+filter = "sinc-blackman"
+[lod]
+scheme = "clipmap"
+n = 15
+layout = "strips"
+[camera]
+position = [1300.0, -2300.0, 700.0]
+look_at = [1500.0, -2500.0, 100.0]
+near = 1.0
+far = 20000.0
+[image]
+width = 32
+height = 24
+"#;
+
+/// Loads `path`; Ok(true) loaded, Ok(false) clean error naming the file,
+/// Err on a panic or an error that does not name the file.
+fn load_once(path: &Path) -> Result<bool, String> {
+    match catch_unwind(AssertUnwindSafe(|| Heightmap::load(path))) {
+        Err(_) => Err(format!("panic on {}", path.display())),
+        Ok(Ok(_)) => Ok(true),
+        Ok(Err(e)) => {
+            let msg = e.to_string();
+            let name = path.file_name().unwrap().to_string_lossy().to_string();
+            if msg.contains(&name) {
+                Ok(false)
+            } else {
+                Err(format!("error does not name {name}: {msg}"))
+            }
+        }
+    }
+}
+
+#[test]
+fn ten_thousand_malformed_inputs_never_panic() {
+    let d = dir();
+    let start = Instant::now();
+    let mut rng = Rng(0x5EED_F00D_1234_5678);
+    let (mut cases, mut loaded, mut failures) = (0usize, 0usize, vec![]);
+    let mut record = |r: Result<bool, String>| match r {
+        Ok(l) => loaded += usize::from(l),
+        Err(e) => failures.push(e),
+    };
+    // Binary formats: 1,600 cases per seed (8,000). The first rejected
+    // cases of each seed are kept for the CLI check below.
+    let mut samples: Vec<PathBuf> = vec![];
+    for (k, (ext, seed)) in seeds(&d).into_iter().enumerate() {
+        let p = d.join(format!("case.{ext}"));
+        for _ in 0..1600 {
+            let bytes = mutate(&mut rng, &seed);
+            std::fs::write(&p, &bytes).unwrap();
+            let r = load_once(&p);
+            if r == Ok(false) && samples.len() < 4 * (k + 1) {
+                let keep = d.join(format!("sample{}.{ext}", samples.len()));
+                std::fs::write(&keep, &bytes).unwrap();
+                samples.push(keep);
+            }
+            record(r);
+            cases += 1;
+        }
+    }
+    // ASCII grids (1,500) and raw f32 with a mutated body or sidecar (1,500).
+    let asc = d.join("case.asc");
+    for _ in 0..1500 {
+        let text = if rng.below(3) == 0 {
+            String::from_utf8_lossy(&mutate(&mut rng, ASC.as_bytes())).into_owned()
+        } else {
+            mutate_text(&mut rng, ASC)
+        };
+        std::fs::write(&asc, text).unwrap();
+        record(load_once(&asc));
+        cases += 1;
+    }
+    let raw = d.join("case.f32");
+    let body: Vec<u8> = [
+        1.0f32,
+        2.0,
+        f32::NAN,
+        4.0,
+        -32768.0,
+        6.0,
+        f32::INFINITY,
+        8.0,
+        9.0,
+        10.0,
+        11.0,
+        12.0,
+    ]
+    .iter()
+    .flat_map(|v| v.to_le_bytes())
+    .collect();
+    for i in 0..1500 {
+        if i % 2 == 0 {
+            std::fs::write(&raw, mutate(&mut rng, &body)).unwrap();
+            std::fs::write(d.join("case.json"), SIDECAR).unwrap();
+        } else {
+            std::fs::write(&raw, &body).unwrap();
+            std::fs::write(d.join("case.json"), mutate_text(&mut rng, SIDECAR)).unwrap();
+        }
+        let r = load_once(&raw);
+        // A sidecar error names the sidecar; accept either file's name.
+        let r = match r {
+            Err(e) if e.contains("case.json") => Ok(false),
+            r => r,
+        };
+        record(r);
+        cases += 1;
+    }
+    // Scenes: wrong types, missing fields, out-of-range values (2,000).
+    for _ in 0..2000 {
+        let text = mutate_text(&mut rng, SCENE);
+        let r = catch_unwind(AssertUnwindSafe(|| {
+            Scene::parse(&text, "fuzz.toml", &d).and_then(|s| s.lod_config().map(|_| ()))
+        }));
+        record(match r {
+            Err(_) => Err(format!("panic on scene:\n{text}")),
+            Ok(Ok(())) => Ok(true),
+            Ok(Err(e)) if e.to_string().contains("fuzz.toml") => Ok(false),
+            Ok(Err(e)) => Err(format!("scene error does not name the file: {e}")),
+        });
+        cases += 1;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    println!(
+        "fuzz: {cases} cases in {secs:.1} s: {loaded} loaded, {} clean errors, {} failures",
+        cases - loaded - failures.len(),
+        failures.len()
+    );
+    // From the CLI: a non-zero exit and a message naming the file.
+    for p in &samples {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .arg("info")
+            .arg(p)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        let name = p.file_name().unwrap().to_string_lossy();
+        assert!(!out.status.success(), "{name} accepted by the CLI");
+        assert!(
+            err.contains(&*name) && !err.contains("panicked"),
+            "{name}: {err}"
+        );
+    }
+    assert_eq!(samples.len(), 20, "CLI samples");
+    let _ = std::fs::remove_dir_all(&d);
+    assert!(cases >= 10_000, "{cases} cases");
+    assert!(
+        failures.is_empty(),
+        "{} failures, first: {}",
+        failures.len(),
+        failures[0]
+    );
+    // The harness must produce errors, not only accepted files.
+    assert!(
+        cases - loaded > cases / 2,
+        "only {} rejections",
+        cases - loaded
+    );
+}
