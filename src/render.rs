@@ -104,27 +104,28 @@ impl Default for RenderOptions {
     }
 }
 
+/// Rasterises `frame`'s triangles at the given clip positions (one per
+/// frame vertex) with the frame's varyings.
+pub fn rasterise_frame(frame: &Frame, clip: &[[f32; 4]], path: raster::Path) -> raster::Raster {
+    let tris: Vec<[u32; 3]> = (0..frame.triangle_count() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    let mesh = Mesh {
+        clip,
+        attrs: &frame.attrs,
+        linear: &frame.layout.linear,
+        triangles: &tris,
+        flat: &frame.mesh.levels,
+    };
+    raster::rasterise(&mesh, frame.width, frame.height, &Options { path })
+}
+
 /// Rasterises and shades a frame on the CPU.
 pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image, RasterStats) {
     let r = passes.time("raster", || {
         let u = &frame.uniforms;
         let clip: Vec<[f32; 4]> = frame.positions.par_iter().map(|&p| u.clip(p)).collect();
-        let tris: Vec<[u32; 3]> = (0..frame.triangle_count() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        let mesh = Mesh {
-            clip: &clip,
-            attrs: &frame.attrs,
-            linear: &frame.layout.linear,
-            triangles: &tris,
-            flat: &frame.mesh.levels,
-        };
-        raster::rasterise(
-            &mesh,
-            frame.width,
-            frame.height,
-            &Options { path: opts.path },
-        )
+        rasterise_frame(frame, &clip, opts.path)
     });
     let rgba = passes.time("shade", || {
         let inputs = ShadeInputs {

@@ -70,17 +70,7 @@ fn naive_depth(session: &mut Session, cam: &Camera) -> Vec<f32> {
                 .map(|k| ((cols[3][k] + cols[2][k] * w[2]) + cols[1][k] * w[1]) + cols[0][k] * w[0])
         })
         .collect();
-    let tris: Vec<[u32; 3]> = (0..frame.triangle_count() as u32)
-        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-        .collect();
-    let mesh = Mesh {
-        clip: &clip,
-        attrs: &frame.attrs,
-        linear: &frame.layout.linear,
-        triangles: &tris,
-        flat: &frame.mesh.levels,
-    };
-    raster::rasterise(&mesh, frame.width, frame.height, &Options::default()).depth
+    terraclip::render::rasterise_frame(&frame, &clip, RasterPath::from_env()).depth
 }
 
 #[test]
