@@ -136,7 +136,7 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
             background: frame.background,
             sun: frame.params.sun_direction().map(|c| c as f32),
         };
-        shade::shade(&inputs, &r)
+        shade::shade(&inputs, &r, opts.path)
     });
     let image = Image {
         width: frame.width,

@@ -113,7 +113,7 @@ pub struct Raster {
 impl Raster {
     /// Rule 5: the varyings of triangle `id` at pixel (px, py), perspective
     /// correct as `plane(a·oow) · (1 / plane(oow))` unless screen-linear.
-    #[inline]
+    #[inline(always)]
     pub fn interpolate(&self, id: u32, px: u32, py: u32, out: &mut [f32]) {
         let n = self.linear.len();
         let t = &self.tris[id as usize];
@@ -123,6 +123,42 @@ impl Raster {
         for k in 0..n {
             let v = planes[k].eval(x, y);
             out[k] = if self.linear[k] { v } else { v * w };
+        }
+    }
+
+    /// [`Raster::interpolate`] for the pixels `xs` of row `py`, all covered
+    /// by triangle `id`: varying k of pixel x lands at `out[k * stride + x]`
+    /// (1/w at `winv[x]`). The same operations per pixel; with one plane per
+    /// varying for the whole run, the loops run several pixels at a time.
+    #[inline(always)]
+    pub fn interpolate_run(
+        &self,
+        id: u32,
+        xs: std::ops::Range<usize>,
+        py: u32,
+        winv: &mut [f32],
+        out: &mut [f32],
+        stride: usize,
+    ) {
+        let n = self.linear.len();
+        let t = &self.tris[id as usize];
+        let y = py as f32;
+        let winv = &mut winv[xs.clone()];
+        for (x, w) in xs.clone().zip(winv.iter_mut()) {
+            *w = 1.0 / t.oow.eval(x as f32, y);
+        }
+        let planes = &self.planes[id as usize * n..id as usize * n + n];
+        for (k, p) in planes.iter().enumerate() {
+            let o = &mut out[k * stride + xs.start..k * stride + xs.end];
+            if self.linear[k] {
+                for (x, o) in xs.clone().zip(o.iter_mut()) {
+                    *o = p.eval(x as f32, y);
+                }
+            } else {
+                for ((x, o), w) in xs.clone().zip(o.iter_mut()).zip(winv.iter()) {
+                    *o = p.eval(x as f32, y) * w;
+                }
+            }
         }
     }
 
@@ -146,10 +182,13 @@ impl Default for Options {
     }
 }
 
-/// Converts a colour channel to 8 bits: round half to even of clamp(c)·255.
-#[inline]
+/// Converts a colour channel to 8 bits: round half to even of clamp(c)·255,
+/// and 0 for NaN. Written with max/min and an i32 conversion (exact on
+/// [0, 255]) because that vectorises, where a saturating `as u8` does not.
+#[inline(always)]
+#[allow(clippy::manual_clamp)] // clamp keeps NaN; max/min turn it into 0 first
 pub fn unorm8(c: f32) -> u8 {
-    (c.clamp(0.0, 1.0) * 255.0).round_ties_even() as u8
+    (c.max(0.0).min(1.0) * 255.0).round_ties_even() as i32 as u8
 }
 
 /// Sets up one triangle in window space (rules 2–5); None if it has zero
@@ -315,41 +354,49 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
     let bins = bin::bin(&tris, width, height);
     let (tiles_x, _) = bin::grid(width, height);
     let avx2 = simd::has_avx2_fma();
-    let tiles: Vec<tile::TileBuf> = bins
-        .par_iter()
+    // One band of 64 rows per task: its tiles are drawn into a reused tile
+    // buffer and copied straight into the band, which the task owns, so the
+    // full-size buffers are written once, in parallel.
+    let w = width as usize;
+    let band = w * bin::TILE as usize;
+    let len = w * height as usize;
+    let mut depth = vec![0.0f32; len];
+    let mut prim = vec![0u32; len];
+    let counts: Vec<[usize; 2]> = depth
+        .par_chunks_mut(band)
+        .zip(prim.par_chunks_mut(band))
         .enumerate()
-        .map(|(i, ids)| {
-            let tx0 = (i as u32 % tiles_x * bin::TILE) as i64;
-            let ty0 = (i as u32 / tiles_x * bin::TILE) as i64;
-            let mut buf = tile::TileBuf::new();
-            for &id in ids {
-                let t = &tris[id as usize];
-                match opts.path {
-                    Path::Scalar => tile::draw(t, id, tx0, ty0, &mut buf),
-                    Path::Simd => simd::draw(t, id, tx0, ty0, &mut buf, avx2),
+        .map_init(tile::TileBuf::new, |buf, (by, (depth, prim))| {
+            let ty0 = by as u32 * bin::TILE;
+            let h = depth.len() / w;
+            let mut counts = [0usize; 2];
+            for bx in 0..tiles_x {
+                let tx0 = bx * bin::TILE;
+                buf.clear();
+                for &id in &bins[(by as u32 * tiles_x + bx) as usize] {
+                    let t = &tris[id as usize];
+                    let (x, y) = (tx0 as i64, ty0 as i64);
+                    match opts.path {
+                        Path::Scalar => tile::draw(t, id, x, y, buf),
+                        Path::Simd => simd::draw(t, id, x, y, buf, avx2),
+                    }
+                }
+                let tw = (w - tx0 as usize).min(bin::TILE as usize);
+                for r in 0..h {
+                    let dst = r * w + tx0 as usize;
+                    let src = r * tile::STRIDE;
+                    let (d, p) = (&buf.depth[src..src + tw], &buf.prim[src..src + tw]);
+                    depth[dst..dst + tw].copy_from_slice(d);
+                    prim[dst..dst + tw].copy_from_slice(p);
+                    counts[0] += p.iter().filter(|&&p| p != NONE).count();
+                    counts[1] += d.iter().filter(|d| !d.is_finite()).count();
                 }
             }
-            buf
+            counts
         })
         .collect();
-
-    let len = width as usize * height as usize;
-    let mut depth = vec![1.0f32; len];
-    let mut prim = vec![NONE; len];
-    for (i, buf) in tiles.iter().enumerate() {
-        let tx0 = (i as u32 % tiles_x * bin::TILE) as usize;
-        let ty0 = (i as u32 / tiles_x * bin::TILE) as usize;
-        let w = (width as usize - tx0).min(bin::TILE as usize);
-        let h = (height as usize - ty0).min(bin::TILE as usize);
-        for r in 0..h {
-            let dst = (ty0 + r) * width as usize + tx0;
-            let src = r * tile::STRIDE;
-            depth[dst..dst + w].copy_from_slice(&buf.depth[src..src + w]);
-            prim[dst..dst + w].copy_from_slice(&buf.prim[src..src + w]);
-        }
-    }
-    stats.covered_pixels = prim.iter().filter(|&&p| p != NONE).count();
-    stats.non_finite_depth = depth.iter().filter(|d| !d.is_finite()).count();
+    stats.covered_pixels = counts.iter().map(|c| c[0]).sum();
+    stats.non_finite_depth = counts.iter().map(|c| c[1]).sum();
     Raster {
         width,
         height,
@@ -359,5 +406,29 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
         planes,
         linear: mesh.linear.to_vec(),
         stats,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unorm8;
+
+    /// The vectorisable form equals the plain definition, NaN included.
+    #[test]
+    fn unorm8_matches_its_definition() {
+        let plain = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round_ties_even() as u8;
+        let specials = [
+            f32::NAN,
+            -f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            -0.0,
+            0.5 / 255.0,
+        ];
+        let halves = (0..=512).map(|k| k as f32 * 0.5 / 255.0);
+        let sweep = (0..u32::MAX / 7919).map(|i| f32::from_bits(i * 7919));
+        for c in specials.into_iter().chain(halves).chain(sweep) {
+            assert_eq!(unorm8(c), plain(c), "{c:e} ({:#x})", c.to_bits());
+        }
     }
 }

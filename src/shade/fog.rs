@@ -15,7 +15,7 @@ pub fn rate(density: f64) -> f32 {
 
 /// The fog factor at distance `d` metres for `rate` from [`rate`]
 /// (1 = clear, 0 = fully fogged).
-#[inline]
+#[inline(always)]
 pub fn factor(rate: f32, d: f32) -> f32 {
     exp2(-(rate * d))
 }
@@ -23,7 +23,7 @@ pub fn factor(rate: f32, d: f32) -> f32 {
 /// 2^x for x ≤ 0 (larger x is clamped to 0), within 2e-6 relative: a degree-7
 /// Taylor polynomial of 2^f on f ∈ [0, 1) in Horner form, times 2^⌊x⌋ built
 /// from the exponent bits. Underflow and NaN give 0.
-#[inline]
+#[inline(always)]
 pub fn exp2(x: f32) -> f32 {
     // NaN fails every comparison and lands here too.
     if x.is_nan() || x <= -126.0 {
@@ -42,7 +42,7 @@ pub fn exp2(x: f32) -> f32 {
 }
 
 /// c · f + fog · (1 − f).
-#[inline]
+#[inline(always)]
 pub fn apply(c: [f32; 3], fog: [f32; 3], f: f32) -> [f32; 3] {
     let g = 1.0 - f;
     [

@@ -21,7 +21,7 @@ pub mod vec3;
 pub mod wireframe;
 
 use crate::lod::LevelInfo;
-use crate::raster::{unorm8, Raster, NONE};
+use crate::raster::{unorm8, Path, Raster, NONE};
 use normal_map::NormalMap;
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -274,83 +274,272 @@ pub struct ShadeInputs<'a> {
     pub sun: [f32; 3],
 }
 
-/// The colour of one visible pixel.
-fn shade_pixel(s: &ShadeInputs, r: &Raster, id: u32, px: u32, py: u32, v: &mut [f32]) -> [f32; 3] {
-    r.interpolate(id, px, py, v);
+/// Pixels shaded together: one AVX2 register of f32.
+const LANES: usize = 8;
+
+/// Colour channels of [`LANES`] pixels.
+type Rgb = [[f32; LANES]; 3];
+
+/// A row's varyings in structure-of-arrays form: varying k of pixel x at
+/// `vary[k * stride + x]`, with `stride` a multiple of [`LANES`] so every
+/// group of pixels reads whole lanes.
+struct Scratch {
+    stride: usize,
+    vary: Vec<f32>,
+    winv: Vec<f32>,
+    level: Vec<u32>,
+}
+
+impl Scratch {
+    fn new(width: usize, varyings: usize) -> Self {
+        let stride = width.next_multiple_of(LANES);
+        Scratch {
+            stride,
+            vary: vec![0.0; stride * varyings],
+            winv: vec![0.0; stride],
+            level: vec![0; stride],
+        }
+    }
+    #[inline(always)]
+    fn lanes(&self, k: usize, x: usize) -> &[f32; LANES] {
+        let at = k * self.stride + x;
+        (&self.vary[at..at + LANES]).try_into().expect("padded row")
+    }
+    #[inline(always)]
+    fn lanes3(&self, k: usize, x: usize) -> [[f32; LANES]; 3] {
+        [
+            *self.lanes(k, x),
+            *self.lanes(k + 1, x),
+            *self.lanes(k + 2, x),
+        ]
+    }
+}
+
+#[inline(always)]
+fn get(c: &Rgb, l: usize) -> [f32; 3] {
+    [c[0][l], c[1][l], c[2][l]]
+}
+
+#[inline(always)]
+fn set(c: &mut Rgb, l: usize, v: [f32; 3]) {
+    (c[0][l], c[1][l], c[2][l]) = (v[0], v[1], v[2]);
+}
+
+/// The colour of [`LANES`] pixels from x, row `ids`. Lanes whose id is
+/// [`NONE`] compute garbage that the caller discards; they never index a
+/// per-level resource. The effects stay written for one pixel; the loops
+/// over lanes (no closures, which the compiler may leave out of line and
+/// so out of the AVX2 build) vectorise. Always inlined so it is compiled
+/// into each build of [`shade_row`].
+#[inline(always)]
+#[allow(clippy::needless_range_loop)] // a lane indexes several arrays at once
+fn shade_lanes(s: &ShadeInputs, sc: &Scratch, ids: &[u32], x: usize) -> Rgb {
     let e = s.effects;
     let lay = s.layout;
-    let level = r.tris[id as usize].flat;
-    let at3 = |k: Option<usize>| k.map(|k| [v[k], v[k + 1], v[k + 2]]);
-    let albedo = match lay.albedo {
-        Some(_) => at3(lay.albedo).expect("albedo"),
-        None => level_tint::albedo(level),
-    };
-    let sun = s.sun;
-    let uv = lay.uv.map(|k| [v[k], v[k + 1]]);
-    let alpha = lay.alpha.map_or(0.0, |k| v[k]);
-    let info = s.resources.levels[level as usize].expect("drawn level");
-    let shadow = match &s.resources.lightmap {
-        Some(lm) => lm.sample(level as usize, info.origin, uv.expect("uv"), alpha),
-        None => 1.0,
-    };
-    let mut c = albedo;
-    if e.lit() {
-        let n = match lay.normal {
-            Some(_) => vec3::normalize(at3(lay.normal).expect("normal")),
-            None => {
-                let fine = s.resources.normal_maps[level as usize]
-                    .as_ref()
-                    .expect("normal map");
-                let coarse = s
-                    .resources
-                    .normal_maps
-                    .get(level as usize + 1)
-                    .and_then(|m| m.as_ref());
-                normal_map::pixel_normal(fine, coarse, info.origin, uv.expect("uv"), alpha)
+    let p = s.params;
+    let mut c = match lay.albedo {
+        Some(k) => sc.lanes3(k, x),
+        None => {
+            let mut a = [[0.0; LANES]; 3];
+            for l in 0..LANES {
+                set(&mut a, l, level_tint::albedo(sc.level[x + l]));
             }
-        };
-        c = lambert::apply(albedo, s.params.ambient, lambert::diffuse(n, sun) * shadow);
-        if e.phong {
-            let view = at3(lay.view).expect("view");
-            let to_eye = [-view[0], -view[1], -view[2]];
-            let p = &s.params;
-            let spec = phong::specular(n, sun, to_eye, p.specular_squarings, p.specular_strength);
-            let spec = spec * shadow;
-            c = [c[0] + spec, c[1] + spec, c[2] + spec];
+            a
+        }
+    };
+    let textured = e.textured().then(|| Texels::new(s, sc, ids, x));
+    let mut shadow = [1.0f32; LANES];
+    if let (Some(lm), Some(t)) = (&s.resources.lightmap, &textured) {
+        for (l, sh) in shadow.iter_mut().enumerate() {
+            if let Some((level, origin)) = t.level(l) {
+                *sh = lm.sample(level, origin, t.uv(l), t.alpha(l));
+            }
+        }
+    }
+    if e.lit() {
+        let mut n = [[0.0; LANES]; 3];
+        match (lay.normal, &textured) {
+            (Some(k), _) => {
+                let v = sc.lanes3(k, x);
+                for l in 0..LANES {
+                    set(&mut n, l, vec3::normalize(get(&v, l)));
+                }
+            }
+            (None, Some(t)) => {
+                for l in 0..LANES {
+                    if let Some(v) = t.normal(l) {
+                        set(&mut n, l, v);
+                    }
+                }
+            }
+            (None, None) => unreachable!("lit without normals or a normal map"),
+        }
+        for l in 0..LANES {
+            let light = lambert::diffuse(get(&n, l), s.sun) * shadow[l];
+            let a = lambert::apply(get(&c, l), p.ambient, light);
+            set(&mut c, l, a);
+        }
+        if let Some(k) = lay.view.filter(|_| e.phong) {
+            let view = sc.lanes3(k, x);
+            for l in 0..LANES {
+                let v = get(&view, l);
+                let to_eye = [-v[0], -v[1], -v[2]];
+                let (sq, st) = (p.specular_squarings, p.specular_strength);
+                let spec = phong::specular(get(&n, l), s.sun, to_eye, sq, st) * shadow[l];
+                let a = get(&c, l);
+                set(&mut c, l, [a[0] + spec, a[1] + spec, a[2] + spec]);
+            }
         }
     } else if e.shadows {
-        c = lambert::apply(albedo, s.params.ambient, shadow);
+        for l in 0..LANES {
+            let a = lambert::apply(get(&c, l), p.ambient, shadow[l]);
+            set(&mut c, l, a);
+        }
     }
     if let Some(k) = lay.fog {
-        c = fog::apply(c, s.params.fog_colour.unwrap_or(s.background), v[k]);
+        let f = sc.lanes(k, x);
+        let fog = p.fog_colour.unwrap_or(s.background);
+        for l in 0..LANES {
+            let a = fog::apply(get(&c, l), fog, f[l]);
+            set(&mut c, l, a);
+        }
     }
-    if let Some(k) = lay.bary {
-        let t = at3(lay.edge).expect("edge thresholds");
-        if wireframe::on_edge([v[k], v[k + 1], v[k + 2]], t) {
-            c = wireframe::apply(c, s.params.wire_colour);
+    if let (Some(k), Some(t)) = (lay.bary, lay.edge) {
+        let (b, t) = (sc.lanes3(k, x), sc.lanes3(t, x));
+        for l in 0..LANES {
+            let a = get(&c, l);
+            let edge = wireframe::on_edge(get(&b, l), get(&t, l));
+            let w = wireframe::apply(a, p.wire_colour);
+            set(&mut c, l, if edge { w } else { a });
         }
     }
     c
 }
 
+/// What texture-reading effects need per lane: the level and its window
+/// origin (None for uncovered lanes), uv and α.
+struct Texels<'a> {
+    s: &'a ShadeInputs<'a>,
+    sc: &'a Scratch,
+    ids: &'a [u32],
+    x: usize,
+}
+
+impl<'a> Texels<'a> {
+    fn new(s: &'a ShadeInputs<'a>, sc: &'a Scratch, ids: &'a [u32], x: usize) -> Self {
+        Texels { s, sc, ids, x }
+    }
+    fn level(&self, l: usize) -> Option<(usize, [i64; 2])> {
+        let id = *self.ids.get(self.x + l)?;
+        if id == NONE {
+            return None;
+        }
+        let level = self.sc.level[self.x + l] as usize;
+        let info = self.s.resources.levels[level].expect("drawn level");
+        Some((level, info.origin))
+    }
+    fn uv(&self, l: usize) -> [f32; 2] {
+        let k = self.s.layout.uv.expect("uv");
+        [self.sc.lanes(k, self.x)[l], self.sc.lanes(k + 1, self.x)[l]]
+    }
+    fn alpha(&self, l: usize) -> f32 {
+        self.s
+            .layout
+            .alpha
+            .map_or(0.0, |k| self.sc.lanes(k, self.x)[l])
+    }
+    /// The normal-mapped normal of lane `l`, if covered.
+    fn normal(&self, l: usize) -> Option<[f32; 3]> {
+        let (level, origin) = self.level(l)?;
+        let maps = &self.s.resources.normal_maps;
+        let fine = maps[level].as_ref().expect("normal map");
+        let coarse = maps.get(level + 1).and_then(|m| m.as_ref());
+        let (uv, alpha) = (self.uv(l), self.alpha(l));
+        Some(normal_map::pixel_normal(fine, coarse, origin, uv, alpha))
+    }
+}
+
 /// Shades every pixel of `r` into RGBA8 (background where nothing drew).
-pub fn shade(s: &ShadeInputs, r: &Raster) -> Vec<u8> {
+///
+/// Per row: the varyings of each run of pixels that share a triangle are
+/// interpolated with that triangle's planes (see
+/// [`Raster::interpolate_run`]), then the effects run over [`LANES`] pixels
+/// at a time. Every pixel gets exactly the operations, in the same order,
+/// that one-pixel-at-a-time shading would give it.
+///
+/// `path` picks the build of the per-row loop: [`Path::Simd`] runs one
+/// compiled for AVX2 + FMA when the CPU has them, where `mul_add` and
+/// rounding are single instructions instead of library calls; the scalar
+/// path runs the portable build. IEEE 754 fixes the result of each
+/// operation, so both give the same bits (the goldens check it).
+pub fn shade(s: &ShadeInputs, r: &Raster, path: Path) -> Vec<u8> {
     let w = r.width as usize;
-    let bg = s.background.map(unorm8);
     let mut out = vec![0u8; w * r.height as usize * 4];
-    out.par_chunks_mut(w * 4).enumerate().for_each(|(py, row)| {
-        let mut v = vec![0.0f32; s.layout.len()];
-        for (px, rgba) in row.chunks_exact_mut(4).enumerate() {
-            let id = r.prim[py * w + px];
-            let c = if id == NONE {
+    let fast = path == Path::Simd && crate::raster::simd::has_avx2_fma();
+    out.par_chunks_mut(w * 4).enumerate().for_each_init(
+        || Scratch::new(w, s.layout.len()),
+        |sc, (py, row)| {
+            #[cfg(target_arch = "x86_64")]
+            if fast {
+                // SAFETY: `fast` is only true when the CPU has AVX2 and FMA.
+                unsafe { shade_row_fma(s, r, py, row, sc) };
+                return;
+            }
+            let _ = fast;
+            shade_row(s, r, py, row, sc);
+        },
+    );
+    out
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn shade_row_fma(s: &ShadeInputs, r: &Raster, py: usize, row: &mut [u8], sc: &mut Scratch) {
+    shade_row(s, r, py, row, sc)
+}
+
+/// One row of pixels; inlined into both builds.
+#[inline(always)]
+fn shade_row(s: &ShadeInputs, r: &Raster, py: usize, row: &mut [u8], sc: &mut Scratch) {
+    let w = r.width as usize;
+    let ids = &r.prim[py * w..py * w + w];
+    let mut x = 0;
+    while x < w {
+        let id = ids[x];
+        let end = ids[x..].iter().position(|&j| j != id).map_or(w, |d| x + d);
+        if id != NONE {
+            let stride = sc.stride;
+            r.interpolate_run(id, x..end, py as u32, &mut sc.winv, &mut sc.vary, stride);
+            sc.level[x..end].fill(r.tris[id as usize].flat);
+        }
+        x = end;
+    }
+    let bg = s.background.map(unorm8);
+    for x in (0..w).step_by(LANES) {
+        let n = (w - x).min(LANES);
+        if ids[x..x + n].iter().all(|&id| id == NONE) {
+            for rgba in row[x * 4..(x + n) * 4].chunks_exact_mut(4) {
+                rgba.copy_from_slice(&[bg[0], bg[1], bg[2], 255]);
+            }
+            continue;
+        }
+        let c = shade_lanes(s, sc, ids, x);
+        let mut q = [[0u8; LANES]; 3];
+        for l in 0..LANES {
+            for ch in 0..3 {
+                q[ch][l] = unorm8(c[ch][l]);
+            }
+        }
+        let out = row[x * 4..(x + n) * 4].chunks_exact_mut(4);
+        for (l, (rgba, &id)) in out.zip(&ids[x..x + n]).enumerate() {
+            let px = if id == NONE {
                 bg
             } else {
-                shade_pixel(s, r, id, px as u32, py as u32, &mut v).map(unorm8)
+                [q[0][l], q[1][l], q[2][l]]
             };
-            rgba.copy_from_slice(&[c[0], c[1], c[2], 255]);
+            rgba.copy_from_slice(&[px[0], px[1], px[2], 255]);
         }
-    });
-    out
+    }
 }
 
 #[cfg(test)]

@@ -34,13 +34,13 @@ pub fn thresholds(c: [[f32; 4]; 3], size: [u32; 2]) -> [f32; 3] {
 
 /// True if a pixel with screen-linear barycentrics `b` lies on an edge of a
 /// triangle with thresholds `t`.
-#[inline]
+#[inline(always)]
 pub fn on_edge(b: [f32; 3], t: [f32; 3]) -> bool {
     b[0] < t[0] || b[1] < t[1] || b[2] < t[2]
 }
 
 /// Line colour mixed over the surface.
-#[inline]
+#[inline(always)]
 pub fn apply(c: [f32; 3], line: [f32; 3]) -> [f32; 3] {
     [
         c[0] * 0.2 + line[0] * 0.8,
