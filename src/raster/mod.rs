@@ -22,6 +22,9 @@ use clip::{ClipVertex, MAX_VARYINGS};
 use rayon::prelude::*;
 use setup::{Edge, Plane, PlaneSetup, Viewport, WinVertex};
 
+/// Pixels per step of [`Raster::interpolate_run`].
+pub const RUN_LANES: usize = 8;
+
 /// Triangle id of a pixel that nothing covered.
 pub const NONE: u32 = u32::MAX;
 
@@ -129,7 +132,11 @@ impl Raster {
     /// [`Raster::interpolate`] for the pixels `xs` of row `py`, all covered
     /// by triangle `id`: varying k of pixel x lands at `out[k * stride + x]`
     /// (1/w at `winv[x]`). The same operations per pixel; with one plane per
-    /// varying for the whole run, the loops run several pixels at a time.
+    /// varying for the whole run, the loops run [`RUN_LANES`] pixels at a
+    /// time. They write whole groups, so up to `RUN_LANES - 1` values past
+    /// `xs.end` are overwritten too: callers go left to right (a later run
+    /// overwrites them) and size each row of `out` to the width plus
+    /// `RUN_LANES`.
     #[inline(always)]
     pub fn interpolate_run(
         &self,
@@ -140,24 +147,43 @@ impl Raster {
         out: &mut [f32],
         stride: usize,
     ) {
+        const L: usize = RUN_LANES;
         let n = self.linear.len();
         let t = &self.tris[id as usize];
         let y = py as f32;
-        let winv = &mut winv[xs.clone()];
-        for (x, w) in xs.clone().zip(winv.iter_mut()) {
-            *w = 1.0 / t.oow.eval(x as f32, y);
+        let groups = (xs.end - xs.start).div_ceil(L);
+        let span = xs.start..xs.start + groups * L;
+        // Each group is computed into a local array, then stored: with all
+        // loads before any store, and the planes copied into locals, the
+        // compiler needs no alias checks and runs the 8 lanes as one.
+        // Pixel indices go to f32 through i32, which converts 8 lanes at once.
+        let xf = |g: usize| -> [f32; L] {
+            let x0 = (xs.start + g * L) as i32;
+            std::array::from_fn(|l| (x0 + l as i32) as f32)
+        };
+        let winv = &mut winv[span.clone()];
+        let oow = t.oow;
+        for (g, w) in winv.chunks_exact_mut(L).enumerate() {
+            let x = xf(g);
+            let v: [f32; L] = std::array::from_fn(|l| 1.0 / oow.eval(x[l], y));
+            w.copy_from_slice(&v);
         }
         let planes = &self.planes[id as usize * n..id as usize * n + n];
-        for (k, p) in planes.iter().enumerate() {
-            let o = &mut out[k * stride + xs.start..k * stride + xs.end];
-            if self.linear[k] {
-                for (x, o) in xs.clone().zip(o.iter_mut()) {
-                    *o = p.eval(x as f32, y);
-                }
-            } else {
-                for ((x, o), w) in xs.clone().zip(o.iter_mut()).zip(winv.iter()) {
-                    *o = p.eval(x as f32, y) * w;
-                }
+        for (k, &p) in planes.iter().enumerate() {
+            let o = &mut out[k * stride + span.start..k * stride + span.end];
+            let lin = self.linear[k];
+            for (g, (o, w)) in o.chunks_exact_mut(L).zip(winv.chunks_exact(L)).enumerate() {
+                let x = xf(g);
+                let w: [f32; L] = w.try_into().expect("whole group");
+                let v: [f32; L] = std::array::from_fn(|l| {
+                    let v = p.eval(x[l], y);
+                    if lin {
+                        v
+                    } else {
+                        v * w[l]
+                    }
+                });
+                o.copy_from_slice(&v);
             }
         }
     }
@@ -183,12 +209,15 @@ impl Default for Options {
 }
 
 /// Converts a colour channel to 8 bits: round half to even of clamp(c)·255,
-/// and 0 for NaN. Written with max/min and an i32 conversion (exact on
-/// [0, 255]) because that vectorises, where a saturating `as u8` does not.
+/// and 0 for NaN. Written so that it vectorises: max/min turn NaN into 0
+/// (clamp would keep it), and the integer in [0, 255] is read from the low
+/// mantissa bits of v + 2²³, which is exact, instead of a saturating `as`
+/// conversion that the compiler does one lane at a time.
 #[inline(always)]
-#[allow(clippy::manual_clamp)] // clamp keeps NaN; max/min turn it into 0 first
+#[allow(clippy::manual_clamp)]
 pub fn unorm8(c: f32) -> u8 {
-    (c.max(0.0).min(1.0) * 255.0).round_ties_even() as i32 as u8
+    let v = (c.max(0.0).min(1.0) * 255.0).round_ties_even();
+    ((v + 8_388_608.0).to_bits() & 0xff) as u8
 }
 
 /// Sets up one triangle in window space (rules 2–5); None if it has zero

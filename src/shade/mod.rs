@@ -21,7 +21,7 @@ pub mod vec3;
 pub mod wireframe;
 
 use crate::lod::LevelInfo;
-use crate::raster::{unorm8, Path, Raster, NONE};
+use crate::raster::{unorm8, Path, Raster, NONE, RUN_LANES};
 use normal_map::NormalMap;
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -292,7 +292,8 @@ struct Scratch {
 
 impl Scratch {
     fn new(width: usize, varyings: usize) -> Self {
-        let stride = width.next_multiple_of(LANES);
+        // Room for `interpolate_run`'s whole groups past the last pixel.
+        let stride = (width + RUN_LANES).next_multiple_of(LANES);
         Scratch {
             stride,
             vary: vec![0.0; stride * varyings],
