@@ -29,6 +29,7 @@ pub mod pyramid;
 pub mod raster;
 pub mod render;
 pub mod report;
+pub mod scaling;
 pub mod scene;
 pub mod shade;
 pub mod stats;

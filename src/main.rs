@@ -147,6 +147,36 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Frame time against terrain size (clipmap and brute force), pyramid
+    /// build time, incremental update against full rebuild, and peak memory,
+    /// on procedural terrains.
+    Scaling {
+        /// Scene whose camera, shading and seed are used; the embedded default
+        /// scene if omitted.
+        scene: Option<PathBuf>,
+        /// Square terrain sizes in texels per side, comma-separated, smallest
+        /// first.
+        #[arg(long, default_value = "1024,2048,4096,16384", value_delimiter = ',')]
+        sizes: Vec<usize>,
+        /// Clipmap n and levels of the size test.
+        #[arg(long, default_value_t = 127)]
+        n: i64,
+        #[arg(long, default_value_t = 4)]
+        levels: usize,
+        /// Frames per size (median reported).
+        #[arg(long, default_value_t = 12)]
+        frames: usize,
+        /// Largest size brute force renders.
+        #[arg(long, default_value_t = 2048)]
+        brute_max: usize,
+        /// n and levels of the incremental-update test (on the largest size).
+        #[arg(long, default_value_t = 255)]
+        update_n: i64,
+        #[arg(long, default_value_t = 10)]
+        update_levels: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Print a heightmap's size, height range, no-data count and format.
     Info {
         heightmap: PathBuf,
@@ -543,6 +573,78 @@ fn cracks_cmd(
 }
 
 #[allow(clippy::too_many_arguments)]
+fn scaling_cmd(
+    scene: &Option<PathBuf>,
+    sizes: Vec<usize>,
+    n: i64,
+    levels: usize,
+    frames: usize,
+    brute_max: usize,
+    update_n: i64,
+    update_levels: usize,
+    json: bool,
+) -> anyhow::Result<()> {
+    use terraclip::scaling;
+    if sizes.windows(2).any(|w| w[0] >= w[1]) {
+        anyhow::bail!("--sizes must be increasing");
+    }
+    if !(1..=20).contains(&update_levels) {
+        anyhow::bail!("--update-levels must be within 1..=20");
+    }
+    let s = load_scene(scene)?;
+    let opts = scaling::Options {
+        sizes,
+        n,
+        levels,
+        frames,
+        brute_max,
+        update_n,
+        update_levels,
+        ..Default::default()
+    };
+    let bar = progress(0, "scaling");
+    let r = scaling::run(&s, &opts, |label| bar.set_message(label.to_string()))?;
+    bar.finish_and_clear();
+    if json {
+        println!("{}", serde_json::to_value(&r)?);
+        return Ok(());
+    }
+    println!("size     terrain    pyramid   clipmap frame   brute-force frame");
+    for row in &r.sizes {
+        let brute = match (row.brute_frame_ms, row.brute_triangles) {
+            (Some(ms), Some(t)) => format!("{ms:9.1} ms ({t} tris)"),
+            _ => "-".into(),
+        };
+        println!(
+            "{:>6}²  {:7.0} ms {:7.0} ms {:8.2} ms ({} tris)   {brute}",
+            row.size, row.terrain_ms, row.pyramid_ms, row.clipmap_frame_ms, row.clipmap_triangles
+        );
+    }
+    println!(
+        "clipmap frame, largest / smallest: {:.3} (target <= 1.05)",
+        r.clipmap_ratio
+    );
+    if let Some(b) = r.brute_ratio {
+        println!("brute force frame, largest / smallest it ran on: {b:.2}");
+    }
+    let u = &r.update;
+    println!(
+        "update n={} L={} on a {}-wide map: {:.4} ms/frame ({:.0} texels) vs full {:.2} ms ({} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2)",
+        u.n, u.levels, u.size, u.incremental_ms, u.incremental_texels, u.full_ms, u.full_texels,
+        u.time_ratio, u.texel_ratio, u.overhead
+    );
+    let m = &r.memory;
+    println!(
+        "peak RSS {} MB; heightmaps {} MB + pyramids {} MB; ratio {} (target < 2)",
+        m.peak_rss_bytes
+            .map_or("?".into(), |b| (b >> 20).to_string()),
+        m.heightmap_bytes >> 20,
+        m.pyramid_bytes >> 20,
+        m.ratio.map_or("?".into(), |r| format!("{r:.2}"))
+    );
+    Ok(())
+}
+
 fn tradeoff_cmd(
     scene: &Option<PathBuf>,
     out: &std::path::Path,
@@ -756,6 +858,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             json,
         }) => cracks_cmd(&scene, views, &lod, size, strict, out.as_deref(), json)?,
+        Some(Cmd::Scaling {
+            scene,
+            sizes,
+            n,
+            levels,
+            frames,
+            brute_max,
+            update_n,
+            update_levels,
+            json,
+        }) => scaling_cmd(
+            &scene,
+            sizes,
+            n,
+            levels,
+            frames,
+            brute_max,
+            update_n,
+            update_levels,
+            json,
+        )?,
         Some(Cmd::Tradeoff {
             scene,
             out,

@@ -221,6 +221,12 @@ impl Clipmap {
 
     /// Moves every level to the viewer at base-grid position `viewer`,
     /// rewriting only newly exposed texels, coarse levels first.
+    /// Marks every level stale, so the next update rebuilds all texels (after
+    /// the terrain under the clipmap changed, or to time a full rebuild).
+    pub fn invalidate(&mut self) {
+        self.levels.iter_mut().for_each(|l| l.heights.invalidate());
+    }
+
     pub fn update(&mut self, viewer: [f64; 2]) -> UpdateStats {
         let count = self.levels.len();
         let viewer = if viewer[0].is_finite() && viewer[1].is_finite() {
@@ -240,17 +246,16 @@ impl Clipmap {
         for l in (0..count).rev() {
             let lv = &mut self.levels[l];
             let origin = regions[l].origin;
-            let needed: u64 = toroid::update_rects(lv.heights.origin(), origin, self.n as usize)
-                .iter()
-                .map(|r| r.area() as u64)
-                .sum();
+            let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
+            let needed: u64 = rects.iter().map(|r| r.area() as u64).sum();
             if needed > budget && l + 1 < count {
                 deferred_from = Some(l);
                 break;
             }
             budget = budget.saturating_sub(needed);
             let src = &self.pyramid.levels[l];
-            let rects = lv.heights.move_to(origin, |x, y| src.get_clamped(x, y));
+            lv.heights
+                .move_with(origin, &rects, |x, y| src.get_clamped(x, y));
             stats.texels_per_level[l] = needed;
             stats.texels_total += needed;
             stats.rects_per_level[l] = rects;
@@ -316,14 +321,20 @@ impl Clipmap {
         }
     }
 
-    /// Height range a level's morphed vertices can take: its own samples and
-    /// those of the level it morphs toward.
+    /// Height range a level's morphed vertices can take: the samples of its
+    /// window (one texel wider, for stitching) and of the window of the level
+    /// it morphs toward, which holds it. Taken from the windows rather than
+    /// whole levels, so culling does not depend on the terrain's size.
     pub fn height_range(&self, l: usize) -> (f32, f32) {
-        let p = &self.pyramid.levels;
-        let (mut lo, mut hi) = (p[l].min, p[l].max);
+        let window = |l: usize| {
+            let o = self.levels[l].regions.origin;
+            [o[0] - 1, o[1] - 1, o[0] + self.n, o[1] + self.n]
+        };
+        let (mut lo, mut hi) = self.pyramid.range_in(l, window(l));
         if self.levels[l].morph.enabled {
-            lo = lo.min(p[l + 1].min);
-            hi = hi.max(p[l + 1].max);
+            let (a, b) = self.pyramid.range_in(l + 1, window(l + 1));
+            lo = lo.min(a);
+            hi = hi.max(b);
         }
         (lo, hi)
     }

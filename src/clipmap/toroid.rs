@@ -6,6 +6,9 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
+/// Texels below which an update is written on the calling thread.
+const PARALLEL_TEXELS: usize = 16 * 1024;
+
 /// A half-open rectangle `[x0, x1) × [y0, y1)` in toroid (texel) space.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct TexRect {
@@ -108,6 +111,10 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
     pub fn origin(&self) -> Option<[i64; 2]> {
         self.origin
     }
+    /// Forgets the contents: the next move rewrites every texel.
+    pub fn invalidate(&mut self) {
+        self.origin = None;
+    }
     /// Toroid texel index of world cell (x, y).
     #[inline]
     pub fn index(&self, x: i64, y: i64) -> usize {
@@ -143,22 +150,44 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
     /// Moves the window to `new` and rewrites exactly the exposed texels with
     /// `fill(world_x, world_y)`. Returns the rectangles rewritten.
     pub fn move_to(&mut self, new: [i64; 2], fill: impl Fn(i64, i64) -> T + Sync) -> Vec<TexRect> {
-        let s = self.size;
-        let rects = update_rects(self.origin, new, s);
-        self.data
-            .par_chunks_mut(s)
-            .enumerate()
-            .for_each(|(ty, row)| {
-                let wy = Self::world_of(ty, new[1], s);
-                for r in rects.iter().filter(|r| ty >= r.y0 && ty < r.y1) {
-                    for (tx, v) in row.iter_mut().enumerate().take(r.x1).skip(r.x0) {
-                        debug_assert!(r.contains(tx, ty));
-                        *v = fill(Self::world_of(tx, new[0], s), wy);
-                    }
-                }
-            });
-        self.origin = Some(new);
+        let rects = update_rects(self.origin, new, self.size);
+        self.move_with(new, &rects, fill);
         rects
+    }
+
+    /// [`Toroid::move_to`] with the rectangles already computed by
+    /// [`update_rects`] for this move.
+    pub fn move_with(
+        &mut self,
+        new: [i64; 2],
+        rects: &[TexRect],
+        fill: impl Fn(i64, i64) -> T + Sync,
+    ) {
+        let s = self.size;
+        let row = |ty: usize, row: &mut [T]| {
+            let wy = Self::world_of(ty, new[1], s);
+            for r in rects.iter().filter(|r| ty >= r.y0 && ty < r.y1) {
+                for (tx, v) in row.iter_mut().enumerate().take(r.x1).skip(r.x0) {
+                    debug_assert!(r.contains(tx, ty));
+                    *v = fill(Self::world_of(tx, new[0], s), wy);
+                }
+            }
+        };
+        // Only the rows the rectangles touch; in parallel only when there is
+        // enough work to pay for it (a one-texel step writes one row and one
+        // column, where waking the thread pool costs more than the writes).
+        let area: usize = rects.iter().map(|r| r.area()).sum();
+        let y0 = rects.iter().map(|r| r.y0).min().unwrap_or(0);
+        let y1 = rects.iter().map(|r| r.y1).max().unwrap_or(0);
+        let band = &mut self.data[y0 * s..y1 * s];
+        if area >= PARALLEL_TEXELS {
+            let rows = band.par_chunks_mut(s).enumerate();
+            rows.for_each(|(i, r)| row(y0 + i, r));
+        } else {
+            let rows = band.chunks_mut(s).enumerate();
+            rows.for_each(|(i, r)| row(y0 + i, r));
+        }
+        self.origin = Some(new);
     }
 }
 

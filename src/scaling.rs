@@ -1,0 +1,337 @@
+//! The scaling stage: what frame time, pyramid building, incremental updates
+//! and memory cost as the terrain grows (issue 7's size targets).
+//!
+//! - **Size independence** (Holkner's claim for clipmaps): one view of
+//!   procedural terrains of several sizes with the same n and L. The clipmap
+//!   covers the same ground on each, so its frame time should not change;
+//!   brute force draws every cell and should grow with the map. Frames of
+//!   all sizes are interleaved, so drift of a noisy machine hits them alike.
+//! - **Pyramid**: the build time per size (sinc-Blackman by default).
+//! - **Incremental update**: a viewer moving one texel per frame against a
+//!   full rebuild, compared with the ratio of texels each writes.
+//! - **Memory**: peak resident memory while the terrains and pyramids are
+//!   built, against their own size.
+
+use crate::clipmap::{Clipmap, ClipmapConfig};
+use crate::error::{Error, Result};
+use crate::heightmap::procedural::Procedural;
+use crate::pyramid::Pyramid;
+use crate::render::{self, RenderOptions, Session};
+use crate::scene::Scene;
+use crate::stats::Passes;
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What to measure.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Square procedural terrains, texels per side, smallest first.
+    pub sizes: Vec<usize>,
+    /// Clipmap n and level count for the size test (the clipmap must fit in
+    /// the smallest map for the views to match).
+    pub n: i64,
+    pub levels: usize,
+    /// Frames per size (the camera pans one texel per frame).
+    pub frames: usize,
+    /// Brute force only up to this size (its frame grows with the map).
+    pub brute_max: usize,
+    /// n and L of the incremental-update test, on the largest map.
+    pub update_n: i64,
+    pub update_levels: usize,
+    pub image: [u32; 2],
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            sizes: vec![1024, 2048, 4096, 16384],
+            n: 127,
+            levels: 4,
+            frames: 12,
+            brute_max: 2048,
+            update_n: 255,
+            update_levels: 10,
+            image: [960, 540],
+        }
+    }
+}
+
+/// One terrain size.
+#[derive(Clone, Debug, Serialize)]
+pub struct SizeRow {
+    pub size: usize,
+    pub terrain_ms: f64,
+    pub pyramid_ms: f64,
+    pub pyramid_levels: usize,
+    /// Median frame (LOD update, mesh, vertex, raster, shade), ms.
+    pub clipmap_frame_ms: f64,
+    pub clipmap_triangles: usize,
+    pub brute_frame_ms: Option<f64>,
+    pub brute_triangles: Option<usize>,
+}
+
+/// Moving one texel per frame against rebuilding every texel.
+#[derive(Clone, Debug, Serialize)]
+pub struct UpdateRow {
+    /// The map's width (its height is a quarter of it).
+    pub size: usize,
+    pub n: i64,
+    pub levels: usize,
+    pub frames: usize,
+    /// Mean per frame over a walk of `frames` one-texel steps.
+    pub incremental_ms: f64,
+    pub incremental_texels: f64,
+    /// Median of full rebuilds (every texel of every level written).
+    pub full_ms: f64,
+    pub full_texels: u64,
+    pub time_ratio: f64,
+    pub texel_ratio: f64,
+    /// time_ratio ÷ texel_ratio; the target is ≤ 1.2.
+    pub overhead: f64,
+}
+
+/// Peak resident memory while every size was loaded and its pyramid built.
+#[derive(Clone, Debug, Serialize)]
+pub struct MemoryRow {
+    pub peak_rss_bytes: Option<u64>,
+    /// Heightmaps (f32 + no-data flag per texel), all sizes.
+    pub heightmap_bytes: u64,
+    /// Pyramids (all levels, f32 + flag per sample), all sizes.
+    pub pyramid_bytes: u64,
+    /// peak ÷ (heightmaps + pyramids); the target is < 2.
+    pub ratio: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub sizes: Vec<SizeRow>,
+    /// Clipmap frame time, largest ÷ smallest size; the target is ≤ 1.05.
+    pub clipmap_ratio: f64,
+    /// Brute force, largest ÷ smallest size it ran on.
+    pub brute_ratio: Option<f64>,
+    pub update: UpdateRow,
+    pub memory: MemoryRow,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The scene for one size: the default scene's camera and shading over a
+/// procedural map of `size`², with scheme `lod`.
+fn scene(base: &Scene, size: usize, lod: &str, opts: &Options) -> Scene {
+    let mut s = base.clone();
+    let seed = base.terrain.procedural.as_ref().map_or(20041, |p| p.seed);
+    s.terrain.file = None;
+    s.terrain.procedural = Some(Procedural::new(seed, size, size));
+    s.lod.scheme = lod.into();
+    s.lod.n = opts.n;
+    s.lod.levels = Some(opts.levels);
+    s.image.width = opts.image[0];
+    s.image.height = opts.image[1];
+    s
+}
+
+fn time_frame(session: &mut Session, cam: &crate::camera::Camera) -> Result<(f64, usize)> {
+    let t = Instant::now();
+    let mut passes = Passes::default();
+    let (frame, _) = session.frame(cam, &mut passes)?;
+    let tris = frame.triangle_count();
+    std::hint::black_box(render::draw(&frame, &RenderOptions::default(), &mut passes));
+    Ok((t.elapsed().as_secs_f64() * 1e3, tris))
+}
+
+/// Heightmap and pyramid bytes of one size.
+fn bytes(p: &Pyramid) -> (u64, u64) {
+    let per = |w: usize, h: usize| (w * h) as u64 * 5;
+    let base = &p.levels[0];
+    let all = p.levels.iter().map(|l| per(l.width, l.height)).sum();
+    (per(base.width, base.height), all)
+}
+
+/// Runs every measurement; `tick` reports progress.
+pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<Report> {
+    if opts.sizes.is_empty() || opts.frames == 0 {
+        return Err(Error::value(
+            "scaling",
+            "need at least one size and one frame",
+        ));
+    }
+    reset_peak_rss();
+    let mut sessions = Vec::new();
+    let mut rows = Vec::new();
+    let (mut hm_bytes, mut pyr_bytes) = (0, 0);
+    for &size in &opts.sizes {
+        tick(&format!("building {size}²"));
+        let s = scene(base, size, "clipmap", opts);
+        s.validate()?;
+        let mut passes = Passes::default();
+        let session = Session::new(&s, &mut passes)?;
+        let (h, p) = bytes(&session.pyramid);
+        hm_bytes += h;
+        pyr_bytes += p;
+        rows.push(SizeRow {
+            size,
+            terrain_ms: passes.0[0].ms,
+            pyramid_ms: passes.0[1].ms,
+            pyramid_levels: session.pyramid.levels.len(),
+            clipmap_frame_ms: 0.0,
+            clipmap_triangles: 0,
+            brute_frame_ms: None,
+            brute_triangles: None,
+        });
+        sessions.push(session);
+    }
+    let peak = peak_rss();
+    let memory = MemoryRow {
+        peak_rss_bytes: peak,
+        heightmap_bytes: hm_bytes,
+        pyramid_bytes: pyr_bytes,
+        ratio: peak.map(|p| p as f64 / (hm_bytes + pyr_bytes) as f64),
+    };
+
+    // Interleaved frames: one of each size per step of the pan.
+    // The scene's view, moved so its eye is over the smallest map's centre.
+    let mut cam = base.camera();
+    cam.aspect = opts.image[0] as f64 / opts.image[1] as f64;
+    let mid = opts.sizes[0] as f64 / 2.0;
+    let centre = sessions[0].world.to_world(mid, mid, 0.0);
+    let shift = glam::DVec3::new(centre.x - cam.eye.x, centre.y - cam.eye.y, 0.0);
+    cam.eye += shift;
+    cam.target += shift;
+    let step = sessions[0].world.cell[0];
+    let mut times = vec![Vec::new(); sessions.len()];
+    for f in 0..=opts.frames {
+        tick(&format!("clipmap frame {f}/{}", opts.frames));
+        let mut c = cam;
+        c.eye.x += f as f64 * step;
+        c.target.x += f as f64 * step;
+        for (i, s) in sessions.iter_mut().enumerate() {
+            let (ms, tris) = time_frame(s, &c)?;
+            // Frame 0 builds every level from scratch: not a steady frame.
+            if f > 0 {
+                times[i].push(ms);
+            }
+            rows[i].clipmap_triangles = tris;
+        }
+    }
+    for (row, t) in rows.iter_mut().zip(&mut times) {
+        row.clipmap_frame_ms = median(t);
+    }
+    let largest = sessions.pop().expect("one size at least");
+    drop(sessions);
+
+    // Brute force on the sizes it can afford.
+    for row in rows.iter_mut().filter(|r| r.size <= opts.brute_max) {
+        tick(&format!("brute force {}²", row.size));
+        let s = scene(base, row.size, "brute-force", opts);
+        let mut session = Session::new(&s, &mut Passes::default())?;
+        let mut t = Vec::new();
+        for _ in 0..3 {
+            let (ms, tris) = time_frame(&mut session, &cam)?;
+            t.push(ms);
+            row.brute_triangles = Some(tris);
+        }
+        row.brute_frame_ms = Some(median(&mut t));
+    }
+
+    drop(largest);
+    tick("incremental update");
+    let update = update_test(opts)?;
+    let first = &rows[0];
+    let last = rows.last().expect("one size at least");
+    let brute: Vec<&SizeRow> = rows.iter().filter(|r| r.brute_frame_ms.is_some()).collect();
+    let brute_ratio = (brute.len() > 1).then(|| {
+        brute[brute.len() - 1].brute_frame_ms.expect("ran") / brute[0].brute_frame_ms.expect("ran")
+    });
+    Ok(Report {
+        clipmap_ratio: last.clipmap_frame_ms / first.clipmap_frame_ms,
+        brute_ratio,
+        sizes: rows,
+        update,
+        memory,
+    })
+}
+
+/// The map of the update test: wide enough that the clipmap bounds allow
+/// L levels of n (the coarsest window must not already hold the whole map),
+/// a quarter as high (or 2^L + 1 rows if that is more). Its heights are a cheap pattern and its pyramid a box
+/// filter: writing a texel costs the same whatever its value.
+fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
+    let need = (n as usize - 1) / 2 * (1usize << levels.saturating_sub(2)) + 2;
+    let w = need.next_power_of_two().max(64);
+    // At least 2^L + 1 rows, so the coarsest level still has two cells.
+    let h = (w / 4).max((1 << levels) + 1);
+    let values = (0..w * h)
+        .map(|i| ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0)
+        .collect();
+    let map = crate::heightmap::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
+        .map_err(|r| Error::value("scaling.update", r))?;
+    Ok(Pyramid::build(&map, crate::pyramid::Filter::Box, levels))
+}
+
+/// A one-texel-per-frame walk of 2^(L−1) frames (every level moves at
+/// least once) against full rebuilds.
+fn update_test(opts: &Options) -> Result<UpdateRow> {
+    let pyramid = Arc::new(update_map(opts.update_n, opts.update_levels)?);
+    let (size, rows) = (pyramid.levels[0].width, pyramid.levels[0].height);
+    let cfg = ClipmapConfig {
+        n: opts.update_n,
+        levels: Some(opts.update_levels),
+        ..Default::default()
+    };
+    let centre = [size as f64 / 2.0, rows as f64 / 2.0];
+    // Full rebuilds: every texel of every level rewritten, in memory that
+    // is already in use (a fresh clipmap would also time page faults).
+    let mut cm = Clipmap::new(pyramid, cfg)?;
+    cm.update(centre);
+    let mut full = Vec::new();
+    let mut full_texels = 0;
+    for _ in 0..9 {
+        cm.invalidate();
+        let t = Instant::now();
+        let s = cm.update(centre);
+        full.push(t.elapsed().as_secs_f64() * 1e3);
+        full_texels = s.texels_total;
+    }
+    let full_ms = median(&mut full);
+    let frames = 1usize << (opts.update_levels - 1);
+    let mut texels = 0u64;
+    let t = Instant::now();
+    for f in 1..=frames {
+        texels += cm.update([centre[0] + f as f64, centre[1]]).texels_total;
+    }
+    let incremental_ms = t.elapsed().as_secs_f64() * 1e3 / frames as f64;
+    let incremental_texels = texels as f64 / frames as f64;
+    let time_ratio = incremental_ms / full_ms;
+    let texel_ratio = incremental_texels / full_texels as f64;
+    Ok(UpdateRow {
+        size,
+        n: opts.update_n,
+        levels: opts.update_levels,
+        frames,
+        incremental_ms,
+        incremental_texels,
+        full_ms,
+        full_texels,
+        time_ratio,
+        texel_ratio,
+        overhead: time_ratio / texel_ratio,
+    })
+}
+
+/// Resets the kernel's peak-RSS mark for this process (Linux ≥ 4.0), so the
+/// peak read later belongs to this measurement.
+fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// Peak resident memory (VmHWM), where the system reports it.
+fn peak_rss() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}

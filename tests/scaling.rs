@@ -1,0 +1,90 @@
+//! Frame work does not depend on terrain size for clipmaps, and does for
+//! brute force; the scaling report's exact figures.
+
+use terraclip::heightmap::procedural::Procedural;
+use terraclip::render::{RenderOptions, Session};
+use terraclip::scaling::{self, Options};
+use terraclip::scene::Scene;
+use terraclip::stats::Passes;
+
+/// The default scene over a procedural `size`² map, eye over its centre.
+fn scene(size: usize, lod: &str) -> Scene {
+    let mut s = Scene::default_scene();
+    s.terrain.procedural = Some(Procedural::new(20041, size, size));
+    s.lod.scheme = lod.into();
+    s.lod.n = 63;
+    s.lod.levels = Some(3);
+    s.image.width = 160;
+    s.image.height = 90;
+    // 256 texels of 10 m: the centre of the smallest map below.
+    s.camera.position = [2560.0, -2560.0, 600.0];
+    s.camera.look_at = Some([3300.0, -3400.0, 100.0]);
+    s
+}
+
+fn render(s: &Scene) -> (terraclip::render::Image, usize) {
+    let mut session = Session::new(s, &mut Passes::default()).unwrap();
+    let (img, stats) = session
+        .render(&s.camera(), &RenderOptions::default(), Passes::default())
+        .unwrap();
+    (img, stats.triangles)
+}
+
+/// The same view of 512² and 2048² maps: a clipmap draws the very same
+/// triangles and depths (its levels cover the same ground, and the pyramid
+/// there does not depend on what lies beyond), while brute force draws
+/// every cell of the bigger map.
+#[test]
+fn clipmap_frames_are_identical_across_terrain_sizes() {
+    let (small, t_small) = render(&scene(512, "clipmap"));
+    let (large, t_large) = render(&scene(2048, "clipmap"));
+    assert!(t_small > 1000, "the view sees terrain: {t_small} triangles");
+    assert_eq!(t_small, t_large, "triangles");
+    // Colour is not compared: the height-ramp albedo is normalised by the
+    // whole map's height range, a property of the scene, not of the frame.
+    let bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&small.depth), bits(&large.depth), "depth differs");
+
+    let (_, b_small) = render(&scene(256, "brute-force"));
+    let (_, b_large) = render(&scene(512, "brute-force"));
+    assert!(
+        b_large > 3 * b_small,
+        "brute force grows with the map: {b_small} -> {b_large}"
+    );
+}
+
+/// The report's exact figures: a full rebuild writes L·n² texels, a walk of
+/// one texel per frame far fewer; clipmap triangles equal across sizes.
+#[test]
+fn scaling_report_figures() {
+    let opts = Options {
+        sizes: vec![256, 512],
+        n: 31,
+        levels: 3,
+        frames: 2,
+        brute_max: 512,
+        update_n: 31,
+        update_levels: 4,
+        image: [96, 54],
+    };
+    let mut base = Scene::default_scene();
+    base.camera.position = [1280.0, -1280.0, 500.0];
+    base.camera.look_at = Some([1800.0, -1900.0, 100.0]);
+    let r = scaling::run(&base, &opts, |_| {}).unwrap();
+    assert_eq!(r.sizes.len(), 2);
+    assert_eq!(r.sizes[0].clipmap_triangles, r.sizes[1].clipmap_triangles);
+    assert!(r.sizes[0].clipmap_triangles > 0);
+    let (b0, b1) = (
+        r.sizes[0].brute_triangles.unwrap(),
+        r.sizes[1].brute_triangles.unwrap(),
+    );
+    assert!(b1 > 3 * b0, "brute force: {b0} -> {b1}");
+    assert_eq!(r.update.full_texels, 4 * 31 * 31);
+    assert_eq!(r.update.frames, 8);
+    assert!(r.update.incremental_texels > 0.0);
+    assert!(r.update.texel_ratio < 0.2, "{}", r.update.texel_ratio);
+    assert!(r.memory.heightmap_bytes == (256 * 256 + 512 * 512) * 5);
+    if cfg!(target_os = "linux") {
+        assert!(r.memory.peak_rss_bytes.unwrap() > 0);
+    }
+}
