@@ -629,10 +629,15 @@ fn scaling_cmd(
     }
     let u = &r.update;
     println!(
-        "update n={} L={} on a {}-wide map: {:.4} ms/frame ({:.0} texels) vs full {:.2} ms ({} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2)",
-        u.n, u.levels, u.size, u.incremental_ms, u.incremental_texels, u.full_ms, u.full_texels,
-        u.time_ratio, u.texel_ratio, u.overhead
+        "full update n={} L={} on a {}-wide map: {:.3} ms ({} texels)",
+        u.n, u.levels, u.size, u.full_ms, u.full_texels
     );
+    for w in &u.walks {
+        println!(
+            "  walk {:<5} {:.4} ms/frame ({:.0} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2)",
+            w.direction, w.incremental_ms, w.incremental_texels, w.time_ratio, w.texel_ratio, w.overhead
+        );
+    }
     let m = &r.memory;
     println!(
         "peak RSS {} MB; heightmaps {} MB + pyramids {} MB; ratio {} (target < 2)",

@@ -78,13 +78,21 @@ pub struct UpdateRow {
     pub size: usize,
     pub n: i64,
     pub levels: usize,
-    pub frames: usize,
-    /// Mean per frame over a walk of `frames` one-texel steps.
-    pub incremental_ms: f64,
-    pub incremental_texels: f64,
     /// Median of full rebuilds (every texel of every level written).
     pub full_ms: f64,
     pub full_texels: u64,
+    /// Walks east (each level writes columns) and south (rows).
+    pub walks: Vec<Walk>,
+}
+
+/// One walk of `frames` one-texel steps.
+#[derive(Clone, Debug, Serialize)]
+pub struct Walk {
+    pub direction: &'static str,
+    pub frames: usize,
+    /// Mean per frame.
+    pub incremental_ms: f64,
+    pub incremental_texels: f64,
     pub time_ratio: f64,
     pub texel_ratio: f64,
     /// time_ratio ÷ texel_ratio; the target is ≤ 1.2.
@@ -298,27 +306,40 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
     }
     let full_ms = median(&mut full);
     let frames = 1usize << (opts.update_levels - 1);
-    let mut texels = 0u64;
-    let t = Instant::now();
-    for f in 1..=frames {
-        texels += cm.update([centre[0] + f as f64, centre[1]]).texels_total;
-    }
-    let incremental_ms = t.elapsed().as_secs_f64() * 1e3 / frames as f64;
-    let incremental_texels = texels as f64 / frames as f64;
-    let time_ratio = incremental_ms / full_ms;
-    let texel_ratio = incremental_texels / full_texels as f64;
+    let walks = [("east", [1.0, 0.0]), ("south", [0.0, 1.0])]
+        .into_iter()
+        .map(|(direction, d)| {
+            cm.update(centre);
+            let mut texels = 0u64;
+            let t = Instant::now();
+            for f in 1..=frames {
+                let f = f as f64;
+                texels += cm
+                    .update([centre[0] + f * d[0], centre[1] + f * d[1]])
+                    .texels_total;
+            }
+            let incremental_ms = t.elapsed().as_secs_f64() * 1e3 / frames as f64;
+            let incremental_texels = texels as f64 / frames as f64;
+            let time_ratio = incremental_ms / full_ms;
+            let texel_ratio = incremental_texels / full_texels as f64;
+            Walk {
+                direction,
+                frames,
+                incremental_ms,
+                incremental_texels,
+                time_ratio,
+                texel_ratio,
+                overhead: time_ratio / texel_ratio,
+            }
+        })
+        .collect();
     Ok(UpdateRow {
         size,
         n: opts.update_n,
         levels: opts.update_levels,
-        frames,
-        incremental_ms,
-        incremental_texels,
         full_ms,
         full_texels,
-        time_ratio,
-        texel_ratio,
-        overhead: time_ratio / texel_ratio,
+        walks,
     })
 }
 

@@ -54,16 +54,22 @@ fn split_cyclic(start: usize, len: usize, s: usize) -> Vec<(usize, usize)> {
 /// from `old` to `new` (world origins). A first fill, or a jump of a full
 /// window or more, rewrites everything as one rectangle.
 pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> Vec<TexRect> {
-    let full = vec![TexRect {
-        x0: 0,
-        y0: 0,
-        x1: s,
-        y1: s,
-    }];
-    let Some(old) = old else { return full };
+    let full = || {
+        vec![TexRect {
+            x0: 0,
+            y0: 0,
+            x1: s,
+            y1: s,
+        }]
+    };
+    let Some(old) = old else { return full() };
     let d = [new[0] - old[0], new[1] - old[1]];
+    if d == [0, 0] {
+        // A level that did not move: nothing to write, nothing allocated.
+        return Vec::new();
+    }
     if d[0].unsigned_abs() as usize >= s || d[1].unsigned_abs() as usize >= s {
-        return full;
+        return full();
     }
     // Per axis: the exposed cyclic interval N and the kept one K.
     let axis = |a: usize| {
@@ -157,6 +163,12 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
 
     /// [`Toroid::move_to`] with the rectangles already computed by
     /// [`update_rects`] for this move.
+    ///
+    /// Each rectangle is cut where the window's world coordinates wrap, so
+    /// every piece maps to consecutive world cells and needs one modulo, not
+    /// one per texel. Small updates (a one-texel step writes a row and a
+    /// column) run on the calling thread, rectangle by rectangle; large ones
+    /// in parallel over the rows they touch.
     pub fn move_with(
         &mut self,
         new: [i64; 2],
@@ -164,30 +176,57 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
         fill: impl Fn(i64, i64) -> T + Sync,
     ) {
         let s = self.size;
-        let row = |ty: usize, row: &mut [T]| {
-            let wy = Self::world_of(ty, new[1], s);
-            for r in rects.iter().filter(|r| ty >= r.y0 && ty < r.y1) {
-                for (tx, v) in row.iter_mut().enumerate().take(r.x1).skip(r.x0) {
-                    debug_assert!(r.contains(tx, ty));
-                    *v = fill(Self::world_of(tx, new[0], s), wy);
+        let wrap = new.map(|o| o.rem_euclid(s as i64) as usize);
+        // Per rectangle: its column pieces as (x0, x1, world x of x0).
+        let pieces: Vec<[(usize, usize, i64); 2]> = rects
+            .iter()
+            .map(|r| {
+                consecutive(r.x0, r.x1, wrap[0]).map(|(a, b)| (a, b, Self::world_of(a, new[0], s)))
+            })
+            .collect();
+        let write = |row: &mut [T], p: &[(usize, usize, i64); 2], wy: i64| {
+            for &(a, b, wx) in p {
+                for (i, v) in row[a..b].iter_mut().enumerate() {
+                    *v = fill(wx + i as i64, wy);
                 }
             }
         };
-        // Only the rows the rectangles touch; in parallel only when there is
-        // enough work to pay for it (a one-texel step writes one row and one
-        // column, where waking the thread pool costs more than the writes).
         let area: usize = rects.iter().map(|r| r.area()).sum();
-        let y0 = rects.iter().map(|r| r.y0).min().unwrap_or(0);
-        let y1 = rects.iter().map(|r| r.y1).max().unwrap_or(0);
-        let band = &mut self.data[y0 * s..y1 * s];
-        if area >= PARALLEL_TEXELS {
-            let rows = band.par_chunks_mut(s).enumerate();
-            rows.for_each(|(i, r)| row(y0 + i, r));
+        if area < PARALLEL_TEXELS {
+            for (r, p) in rects.iter().zip(&pieces) {
+                for (ya, yb) in consecutive(r.y0, r.y1, wrap[1]) {
+                    let wy = Self::world_of(ya, new[1], s);
+                    for ty in ya..yb {
+                        write(&mut self.data[ty * s..ty * s + s], p, wy + (ty - ya) as i64);
+                    }
+                }
+            }
         } else {
-            let rows = band.chunks_mut(s).enumerate();
-            rows.for_each(|(i, r)| row(y0 + i, r));
+            let y0 = rects.iter().map(|r| r.y0).min().unwrap_or(0);
+            let y1 = rects.iter().map(|r| r.y1).max().unwrap_or(0);
+            let band = &mut self.data[y0 * s..y1 * s];
+            band.par_chunks_mut(s).enumerate().for_each(|(i, row)| {
+                let ty = y0 + i;
+                let wy = Self::world_of(ty, new[1], s);
+                for (r, p) in rects.iter().zip(&pieces) {
+                    if ty >= r.y0 && ty < r.y1 {
+                        debug_assert!(r.contains(r.x0, ty));
+                        write(row, p, wy);
+                    }
+                }
+            });
         }
         self.origin = Some(new);
+    }
+}
+
+/// Toroid interval [a, b) cut at texel `wrap`, where the window's world
+/// coordinates jump back by s; an empty second piece when it does not wrap.
+fn consecutive(a: usize, b: usize, wrap: usize) -> [(usize, usize); 2] {
+    if a < wrap && wrap < b {
+        [(a, wrap), (wrap, b)]
+    } else {
+        [(a, b), (b, b)]
     }
 }
 
