@@ -36,9 +36,47 @@ fn bench(c: &mut Criterion) {
     }
 }
 
+/// Issue 7's update case: n = 255, L = 10, one texel per frame, against a
+/// full rebuild of every level (the `scaling` command's map).
+fn bench_n255_l10(c: &mut Criterion) {
+    let pyramid = Arc::new(terraclip::scaling::update_map(255, 10).unwrap());
+    let centre = [
+        pyramid.levels[0].width as f64 / 2.0,
+        pyramid.levels[0].height as f64 / 2.0,
+    ];
+    let mut cm = Clipmap::new(
+        pyramid,
+        ClipmapConfig {
+            n: 255,
+            levels: Some(10),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    cm.update(centre);
+    c.bench_function("update_n255_l10_full_rebuild", |b| {
+        b.iter(|| {
+            cm.invalidate();
+            cm.update(centre)
+        })
+    });
+    for (name, d) in [("east", [1.0, 0.0]), ("south", [0.0, 1.0])] {
+        let mut f = 0.0;
+        cm.update(centre);
+        c.bench_function(&format!("update_n255_l10_walk_{name}"), |b| {
+            b.iter(|| {
+                // 4096 steps, then one jump back: 1/4096 of the samples are a
+                // rebuild, as in any long walk over a finite map.
+                f = (f + 1.0) % 4096.0;
+                cm.update([centre[0] + f * d[0], centre[1] + f * d[1]])
+            })
+        });
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20);
-    targets = bench
+    targets = bench, bench_n255_l10
 }
 criterion_main!(benches);

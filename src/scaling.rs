@@ -267,7 +267,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 /// L levels of n (the coarsest window must not already hold the whole map),
 /// a quarter as high (or 2^L + 1 rows if that is more). Its heights are a cheap pattern and its pyramid a box
 /// filter: writing a texel costs the same whatever its value.
-fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
+pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
     let need = (n as usize - 1) / 2 * (1usize << levels.saturating_sub(2)) + 2;
     let w = need.next_power_of_two().max(64);
     // At least 2^L + 1 rows, so the coarsest level still has two cells.
