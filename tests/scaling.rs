@@ -82,7 +82,7 @@ fn scaling_report_figures() {
     assert_eq!(r.update.full_texels, 4 * 31 * 31);
     assert_eq!(r.update.walks.len(), 2);
     for w in &r.update.walks {
-        assert_eq!(w.frames, 8);
+        assert_eq!(w.frames, 32);
         assert!(w.incremental_texels > 0.0);
         assert!(w.texel_ratio < 0.2, "{}", w.texel_ratio);
     }

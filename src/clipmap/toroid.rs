@@ -39,14 +39,25 @@ pub struct Toroid<T> {
 }
 
 /// Cyclic interval `[start, start+len)` on a circle of `s` texels, split into
-/// non-wrapping half-open pieces.
-fn split_cyclic(start: usize, len: usize, s: usize) -> Vec<(usize, usize)> {
+/// at most two non-wrapping half-open pieces (held inline: updates run every
+/// frame, and allocating for two pairs cost more than using them).
+fn split_cyclic(start: usize, len: usize, s: usize) -> Cyclic {
     if len == 0 {
-        vec![]
+        Cyclic([(0, 0); 2], 0)
     } else if start + len <= s {
-        vec![(start, start + len)]
+        Cyclic([(start, start + len), (0, 0)], 1)
     } else {
-        vec![(start, s), (0, start + len - s)]
+        Cyclic([(start, s), (0, start + len - s)], 2)
+    }
+}
+
+/// The pieces of a cyclic interval, see [`split_cyclic`].
+#[derive(Clone, Copy)]
+struct Cyclic([(usize, usize); 2], usize);
+
+impl Cyclic {
+    fn pieces(&self) -> &[(usize, usize)] {
+        &self.0[..self.1]
     }
 }
 
@@ -82,23 +93,20 @@ pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> Vec<TexRe
     };
     let (nx, kx) = axis(0);
     let (ny, ky) = axis(1);
+    let (nx, kx, ny, ky) = (nx.pieces(), kx.pieces(), ny.pieces(), ky.pieces());
     let rect = |(x0, x1): (usize, usize), (y0, y1): (usize, usize)| TexRect { x0, y0, x1, y1 };
     // Either full-width rows of N_y plus N_x × K_y, or full-height columns of
     // N_x plus K_x × N_y; the cheaper split never needs more than 4.
-    let rows_first: Vec<TexRect> = ny
-        .iter()
-        .map(|&y| rect((0, s), y))
-        .chain(nx.iter().flat_map(|&x| ky.iter().map(move |&y| rect(x, y))))
-        .collect();
-    let cols_first: Vec<TexRect> = nx
-        .iter()
-        .map(|&x| rect(x, (0, s)))
-        .chain(kx.iter().flat_map(|&x| ny.iter().map(move |&y| rect(x, y))))
-        .collect();
-    if rows_first.len() <= cols_first.len() {
-        rows_first
+    if ny.len() + nx.len() * ky.len() <= nx.len() + kx.len() * ny.len() {
+        ny.iter()
+            .map(|&y| rect((0, s), y))
+            .chain(nx.iter().flat_map(|&x| ky.iter().map(move |&y| rect(x, y))))
+            .collect()
     } else {
-        cols_first
+        nx.iter()
+            .map(|&x| rect(x, (0, s)))
+            .chain(kx.iter().flat_map(|&x| ny.iter().map(move |&y| rect(x, y))))
+            .collect()
     }
 }
 
