@@ -161,10 +161,10 @@ enum Cmd {
         /// Clipmap n and levels of the size test.
         #[arg(long, default_value_t = 127)]
         n: i64,
-        #[arg(long, default_value_t = 4)]
+        #[arg(long, default_value_t = 3)]
         levels: usize,
         /// Frames per size (median reported).
-        #[arg(long, default_value_t = 12)]
+        #[arg(long, default_value_t = 40)]
         frames: usize,
         /// Largest size brute force renders.
         #[arg(long, default_value_t = 2048)]

@@ -174,7 +174,8 @@ impl Session {
         let cfg = scene.lod_config()?;
         let effects = scene.effects()?;
         let count = cfg.pyramid_levels(h.width(), h.height());
-        let pyramid = Arc::new(passes.time("pyramid", || Pyramid::build(&h, filter, count)));
+        let pyramid = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
+        let pyramid = Arc::new(pyramid);
         let lod = scene.new_lod(&cfg, pyramid.clone())?;
         Ok(Session {
             world,

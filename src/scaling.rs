@@ -47,8 +47,8 @@ impl Default for Options {
         Options {
             sizes: vec![1024, 2048, 4096, 16384],
             n: 127,
-            levels: 4,
-            frames: 12,
+            levels: 3,
+            frames: 40,
             brute_max: 2048,
             update_n: 255,
             update_levels: 10,
@@ -216,8 +216,10 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         let mut c = cam;
         c.eye.x += f as f64 * step;
         c.target.x += f as f64 * step;
-        for (i, s) in sessions.iter_mut().enumerate() {
-            let (ms, tris) = time_frame(s, &c)?;
+        // The order rotates each step, so no size always runs first.
+        let count = sessions.len();
+        for i in (0..count).map(|k| (k + f) % count) {
+            let (ms, tris) = time_frame(&mut sessions[i], &c)?;
             // Frame 0 builds every level from scratch: not a steady frame.
             if f > 0 {
                 times[i].push(ms);
