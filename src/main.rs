@@ -588,9 +588,6 @@ fn scaling_cmd(
     if sizes.windows(2).any(|w| w[0] >= w[1]) {
         anyhow::bail!("--sizes must be increasing");
     }
-    if !(1..=20).contains(&update_levels) {
-        anyhow::bail!("--update-levels must be within 1..=20");
-    }
     let s = load_scene(scene)?;
     let opts = scaling::Options {
         sizes,

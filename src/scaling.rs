@@ -167,6 +167,8 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             "need at least one size and one frame",
         ));
     }
+    // Checked before the long work, not after it.
+    update_dims(opts.update_n, opts.update_levels)?;
     reset_peak_rss();
     let mut sessions = Vec::new();
     let mut rows = Vec::new();
@@ -270,16 +272,35 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 /// a quarter as high (or 2^L + 1 rows if that is more). Its heights are a cheap pattern and its pyramid a box
 /// filter: writing a texel costs the same whatever its value.
 pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
-    let need = (n as usize - 1) / 2 * (1usize << levels.saturating_sub(2)) + 2;
-    let w = need.next_power_of_two().max(64);
-    // At least 2^L + 1 rows, so the coarsest level still has two cells.
-    let h = (w / 4).max((1 << levels) + 1);
+    let (w, h) = update_dims(n, levels)?;
     let values = (0..w * h)
         .map(|i| ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0)
         .collect();
     let map = crate::heightmap::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
         .map_err(|r| Error::value("scaling.update", r))?;
     Ok(Pyramid::build(&map, crate::pyramid::Filter::Box, levels))
+}
+
+/// The update map's size for n and L, or why there is none.
+fn update_dims(n: i64, levels: usize) -> Result<(usize, usize)> {
+    crate::clipmap::region::check_n(n).map_err(|r| Error::value("scaling.update_n", r))?;
+    if !(1..=20).contains(&levels) {
+        return Err(Error::value(
+            "scaling.update_levels",
+            "must be within 1..=20",
+        ));
+    }
+    let need = (n as usize - 1) / 2 * (1usize << levels.saturating_sub(2)) + 2;
+    let w = need.next_power_of_two().max(64);
+    // At least 2^L + 1 rows, so the coarsest level still has two cells.
+    let h = (w / 4).max((1 << levels) + 1);
+    crate::heightmap::check_dimensions(w as u64, h as u64).map_err(|r| {
+        Error::value(
+            "scaling.update",
+            format!("n = {n} with L = {levels} needs a {w}×{h} map: {r}"),
+        )
+    })?;
+    Ok((w, h))
 }
 
 /// One-texel-per-frame walks of 4 · 2^(L−1) frames (every level moves at

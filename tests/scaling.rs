@@ -91,3 +91,74 @@ fn scaling_report_figures() {
         assert!(r.memory.peak_rss_bytes.unwrap() > 0);
     }
 }
+
+/// Bad settings are errors that name the setting, found before any map is
+/// built.
+#[test]
+fn bad_scaling_options_are_errors() {
+    let ok = Options {
+        sizes: vec![256],
+        n: 31,
+        levels: 3,
+        frames: 1,
+        brute_max: 0,
+        update_n: 31,
+        update_levels: 4,
+        image: [32, 18],
+    };
+    let cases = [
+        (
+            Options {
+                frames: 0,
+                ..ok.clone()
+            },
+            "frame",
+        ),
+        (
+            Options {
+                sizes: vec![],
+                ..ok.clone()
+            },
+            "size",
+        ),
+        (
+            Options {
+                update_n: 100,
+                ..ok.clone()
+            },
+            "update_n",
+        ),
+        (
+            Options {
+                update_levels: 0,
+                ..ok.clone()
+            },
+            "update_levels",
+        ),
+        (
+            Options {
+                update_levels: 20,
+                ..ok.clone()
+            },
+            "exceed",
+        ),
+        (
+            Options {
+                sizes: vec![0],
+                ..ok.clone()
+            },
+            "zero",
+        ),
+        (
+            Options {
+                n: 100,
+                ..ok.clone()
+            },
+            "lod.n",
+        ),
+    ];
+    for (opts, word) in cases {
+        let err = scaling::run(&Scene::default_scene(), &opts, |_| {}).unwrap_err();
+        assert!(err.to_string().contains(word), "{err} (wanted '{word}')");
+    }
+}
