@@ -3,10 +3,12 @@
 //! `RASTER_RULES.md` so that it is bit-identical to lavapipe.
 //!
 //! Stages: `setup` (viewport, snap, planes), `clip` (Mesa's clipper),
-//! `bin` (64×64 tiles), `tile` (scalar coverage + depth) and `simd` (its
-//! 8-lane twin). Shading is not done here: [`Raster::interpolate`] evaluates
-//! a visible triangle's varyings at a pixel, so the shading stage pays only
-//! for pixels that survive the depth test.
+//! `bin` (64×64 tiles), `tile` (the scalar reference: three edge tests and a
+//! depth test per pixel) and `simd` (the fast path: exact covered spans per
+//! row, depth-tested 8 pixels at a time). Shading is not done here:
+//! [`Raster::interpolate`] and [`Raster::interpolate_run`] evaluate a visible
+//! triangle's varyings, so the shading stage pays only for pixels that
+//! survive the depth test.
 //!
 //! Determinism: triangles are set up in parallel but collected in submission
 //! order; tiles are independent and each walks its triangles in that order;
