@@ -47,7 +47,7 @@ impl WorldMap {
             (self.origin[1] - p.y) / self.cell[1],
         ]
     }
-    /// World-space box of grid rectangle [c0,c1]×[r0,r1] extruded over
+    /// World-space box of grid rectangle `[c0, c1] × [r0, r1]` extruded over
     /// heights [z0, z1].
     pub fn aabb(&self, c0: f64, r0: f64, c1: f64, r1: f64, z0: f64, z1: f64) -> (DVec3, DVec3) {
         let a = self.to_world(c0, r0, z0);

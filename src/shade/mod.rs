@@ -464,7 +464,7 @@ impl<'a> Texels<'a> {
 ///
 /// Per row: the varyings of each run of pixels that share a triangle are
 /// interpolated with that triangle's planes (see
-/// [`Raster::interpolate_run`]), then the effects run over [`LANES`] pixels
+/// [`Raster::interpolate_run`]), then the effects run over 8 pixels
 /// at a time. Every pixel gets exactly the operations, in the same order,
 /// that one-pixel-at-a-time shading would give it.
 ///
