@@ -19,6 +19,52 @@ struct Cli {
     cmd: Option<Cmd>,
 }
 
+/// `terraclip scaling`'s settings.
+#[derive(clap::Args, Debug)]
+struct ScalingArgs {
+    /// Scene whose camera, shading and seed are used; the embedded default
+    /// scene if omitted.
+    scene: Option<PathBuf>,
+    /// Square terrain sizes in texels per side, comma-separated, smallest
+    /// first.
+    #[arg(long, default_value = "1024,2048,4096,16384", value_delimiter = ',')]
+    sizes: Vec<usize>,
+    /// Clipmap n and levels of the size test.
+    #[arg(long, default_value_t = 127)]
+    n: i64,
+    #[arg(long, default_value_t = 3)]
+    levels: usize,
+    /// Frames per size (median reported).
+    #[arg(long, default_value_t = 40)]
+    frames: usize,
+    /// Largest size brute force renders.
+    #[arg(long, default_value_t = 2048)]
+    brute_max: usize,
+    /// n and levels of the incremental-update test (on its own map, wide
+    /// enough for that many levels).
+    #[arg(long, default_value_t = 255)]
+    update_n: i64,
+    #[arg(long, default_value_t = 10)]
+    update_levels: usize,
+    #[arg(long)]
+    json: bool,
+}
+
+impl ScalingArgs {
+    fn options(&self) -> terraclip::scaling::Options {
+        terraclip::scaling::Options {
+            sizes: self.sizes.clone(),
+            n: self.n,
+            levels: self.levels,
+            frames: self.frames,
+            brute_max: self.brute_max,
+            update_n: self.update_n,
+            update_levels: self.update_levels,
+            ..Default::default()
+        }
+    }
+}
+
 /// Scene values the command line can replace.
 #[derive(clap::Args, Debug, Default)]
 struct SceneArgs {
@@ -150,33 +196,7 @@ enum Cmd {
     /// Frame time against terrain size (clipmap and brute force), pyramid
     /// build time, incremental update against full rebuild, and peak memory,
     /// on procedural terrains.
-    Scaling {
-        /// Scene whose camera, shading and seed are used; the embedded default
-        /// scene if omitted.
-        scene: Option<PathBuf>,
-        /// Square terrain sizes in texels per side, comma-separated, smallest
-        /// first.
-        #[arg(long, default_value = "1024,2048,4096,16384", value_delimiter = ',')]
-        sizes: Vec<usize>,
-        /// Clipmap n and levels of the size test.
-        #[arg(long, default_value_t = 127)]
-        n: i64,
-        #[arg(long, default_value_t = 3)]
-        levels: usize,
-        /// Frames per size (median reported).
-        #[arg(long, default_value_t = 40)]
-        frames: usize,
-        /// Largest size brute force renders.
-        #[arg(long, default_value_t = 2048)]
-        brute_max: usize,
-        /// n and levels of the incremental-update test (on the largest size).
-        #[arg(long, default_value_t = 255)]
-        update_n: i64,
-        #[arg(long, default_value_t = 10)]
-        update_levels: usize,
-        #[arg(long)]
-        json: bool,
-    },
+    Scaling(ScalingArgs),
     /// Print a heightmap's size, height range, no-data count and format.
     Info {
         heightmap: PathBuf,
@@ -572,37 +592,14 @@ fn cracks_cmd(
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn scaling_cmd(
-    scene: &Option<PathBuf>,
-    sizes: Vec<usize>,
-    n: i64,
-    levels: usize,
-    frames: usize,
-    brute_max: usize,
-    update_n: i64,
-    update_levels: usize,
-    json: bool,
-) -> anyhow::Result<()> {
+fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
     use terraclip::scaling;
-    if sizes.windows(2).any(|w| w[0] >= w[1]) {
-        anyhow::bail!("--sizes must be increasing");
-    }
-    let s = load_scene(scene)?;
-    let opts = scaling::Options {
-        sizes,
-        n,
-        levels,
-        frames,
-        brute_max,
-        update_n,
-        update_levels,
-        ..Default::default()
-    };
+    let s = load_scene(&args.scene)?;
+    let opts = args.options();
     let bar = progress(0, "scaling");
     let r = scaling::run(&s, &opts, |label| bar.set_message(label.to_string()))?;
     bar.finish_and_clear();
-    if json {
+    if args.json {
         println!("{}", serde_json::to_value(&r)?);
         return Ok(());
     }
@@ -860,27 +857,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             json,
         }) => cracks_cmd(&scene, views, &lod, size, strict, out.as_deref(), json)?,
-        Some(Cmd::Scaling {
-            scene,
-            sizes,
-            n,
-            levels,
-            frames,
-            brute_max,
-            update_n,
-            update_levels,
-            json,
-        }) => scaling_cmd(
-            &scene,
-            sizes,
-            n,
-            levels,
-            frames,
-            brute_max,
-            update_n,
-            update_levels,
-            json,
-        )?,
+        Some(Cmd::Scaling(args)) => scaling_cmd(&args)?,
         Some(Cmd::Tradeoff {
             scene,
             out,

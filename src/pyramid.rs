@@ -215,7 +215,7 @@ impl Pyramid {
 
     /// Adds coarser levels until there are `count` (or a level would have
     /// fewer than 2 samples along an axis).
-    pub fn extend_to(&mut self, count: usize) {
+    fn extend_to(&mut self, count: usize) {
         let kernel = self.filter.kernel();
         while self.levels.len() < count {
             let prev = self.levels.last().expect("level 0 exists");
@@ -322,14 +322,15 @@ fn padded_halves(r: usize, len: usize, get: impl Fn(usize) -> (f32, bool)) -> [[
 const ROWS_PER_TASK: usize = 64;
 
 /// Pass 1 of [`downsample`] for input row `y`: filtered along x, every
-/// second sample kept, into `out` (values) and `out_nd` (no-data).
+/// second sample kept, into `out` (values, f32 held as f64) and `out_ok`
+/// (1 valid, 0 no-data): the form pass 2 sums, converted once per row.
 fn filter_row(
     src: &PyramidLevel,
     y: usize,
     kernel: &[f64],
     acc: &mut Sums,
-    out: &mut [f32],
-    out_nd: &mut [bool],
+    out: &mut [f64],
+    out_ok: &mut [f64],
 ) {
     let w = src.width;
     let line = |x: usize| (src.data[y * w + x], src.nodata[y * w + x]);
@@ -339,10 +340,10 @@ fn filter_row(
         let [v, ok] = &halves[k % 2];
         acc.add(wk, &v[k / 2..], &ok[k / 2..]);
     }
-    for (j, (o, o_nd)) in out.iter_mut().zip(out_nd.iter_mut()).enumerate() {
+    for (j, (o, o_ok)) in out.iter_mut().zip(out_ok.iter_mut()).enumerate() {
         let (centre, nd) = line(2 * j);
-        *o = acc.value(j, centre);
-        *o_nd = nd;
+        *o = acc.value(j, centre) as f64;
+        *o_ok = if nd { 0.0 } else { 1.0 };
     }
 }
 
@@ -362,18 +363,18 @@ fn downsample(src: &PyramidLevel, kernel: &[f64]) -> PyramidLevel {
         .zip(nodata.par_chunks_mut(band))
         .enumerate()
         .for_each_init(
-            || (Sums::new(w2), vec![0.0; w2], vec![0.0; w2], vec![], vec![]),
-            |(acc, v, ok, rows, rows_nd), (b, (out, out_nd))| {
+            || (Sums::new(w2), vec![], vec![]),
+            |(acc, rows, rows_ok), (b, (out, out_nd))| {
                 let j0 = b * ROWS_PER_TASK;
                 let j1 = j0 + out.len() / w2;
                 // Pass 1 for the input rows this band's taps reach.
                 let ya = clamp(2 * j0 as i64 - r as i64);
                 let yb = clamp(2 * (j1 as i64 - 1) + r as i64);
-                rows.resize((yb - ya + 1) * w2, 0.0f32);
-                rows_nd.resize((yb - ya + 1) * w2, false);
-                let pass1 = rows.chunks_exact_mut(w2).zip(rows_nd.chunks_exact_mut(w2));
-                for (y, (row, row_nd)) in (ya..=yb).zip(pass1) {
-                    filter_row(src, y, kernel, acc, row, row_nd);
+                rows.resize((yb - ya + 1) * w2, 0.0);
+                rows_ok.resize((yb - ya + 1) * w2, 0.0);
+                let pass1 = rows.chunks_exact_mut(w2).zip(rows_ok.chunks_exact_mut(w2));
+                for (y, (row, row_ok)) in (ya..=yb).zip(pass1) {
+                    filter_row(src, y, kernel, acc, row, row_ok);
                 }
                 // Pass 2: columns (y direction), every second row kept.
                 let out_rows = out.chunks_exact_mut(w2).zip(out_nd.chunks_exact_mut(w2));
@@ -381,20 +382,14 @@ fn downsample(src: &PyramidLevel, kernel: &[f64]) -> PyramidLevel {
                     acc.clear();
                     for (k, &wk) in kernel.iter().enumerate() {
                         let at = (clamp(2 * j as i64 + k as i64 - r as i64) - ya) * w2;
-                        let (x, nd) = (&rows[at..at + w2], &rows_nd[at..at + w2]);
-                        for ((v, ok), (&x, &nd)) in
-                            v.iter_mut().zip(ok.iter_mut()).zip(x.iter().zip(nd))
-                        {
-                            *v = x as f64;
-                            *ok = if nd { 0.0 } else { 1.0 };
-                        }
-                        acc.add(wk, v, ok);
+                        acc.add(wk, &rows[at..at + w2], &rows_ok[at..at + w2]);
                     }
                     let c = (2 * j - ya) * w2;
-                    let (centre, centre_nd) = (&rows[c..c + w2], &rows_nd[c..c + w2]);
+                    let (centre, centre_ok) = (&rows[c..c + w2], &rows_ok[c..c + w2]);
                     for x in 0..w2 {
-                        out[x] = acc.value(x, centre[x]);
-                        out_nd[x] = centre_nd[x];
+                        // Exact: the f64 holds an f32.
+                        out[x] = acc.value(x, centre[x] as f32);
+                        out_nd[x] = centre_ok[x] == 0.0;
                     }
                 }
             },

@@ -71,11 +71,7 @@ pub struct RenderStats {
 impl RenderStats {
     /// Total time of the passes named `names` (ms).
     pub fn pass_ms(&self, names: &[&str]) -> f64 {
-        self.passes
-            .iter()
-            .filter(|p| names.contains(&p.name.as_str()))
-            .map(|p| p.ms)
-            .sum()
+        crate::stats::pass_ms(&self.passes, names)
     }
 }
 

@@ -18,7 +18,7 @@ use crate::heightmap::procedural::Procedural;
 use crate::pyramid::Pyramid;
 use crate::render::{self, RenderOptions, Session};
 use crate::scene::Scene;
-use crate::stats::Passes;
+use crate::stats::{median, Passes};
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
@@ -36,7 +36,7 @@ pub struct Options {
     pub frames: usize,
     /// Brute force only up to this size (its frame grows with the map).
     pub brute_max: usize,
-    /// n and L of the incremental-update test, on the largest map.
+    /// n and L of the incremental-update test, on its own map.
     pub update_n: i64,
     pub update_levels: usize,
     pub image: [u32; 2],
@@ -122,11 +122,6 @@ pub struct Report {
     pub memory: MemoryRow,
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
 /// The scene for one size: the default scene's camera and shading over a
 /// procedural map of `size`², with scheme `lod`.
 fn scene(base: &Scene, size: usize, lod: &str, opts: &Options) -> Scene {
@@ -167,6 +162,9 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             "need at least one size and one frame",
         ));
     }
+    if opts.sizes.windows(2).any(|w| w[0] >= w[1]) {
+        return Err(Error::value("scaling.sizes", "must be increasing"));
+    }
     // Checked before the long work, not after it.
     update_dims(opts.update_n, opts.update_levels)?;
     reset_peak_rss();
@@ -184,8 +182,8 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         pyr_bytes += p;
         rows.push(SizeRow {
             size,
-            terrain_ms: passes.0[0].ms,
-            pyramid_ms: passes.0[1].ms,
+            terrain_ms: passes.ms(&["terrain"]),
+            pyramid_ms: passes.ms(&["pyramid"]),
             pyramid_levels: session.pyramid.levels.len(),
             clipmap_frame_ms: 0.0,
             clipmap_triangles: 0,
@@ -229,10 +227,9 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             rows[i].clipmap_triangles = tris;
         }
     }
-    for (row, t) in rows.iter_mut().zip(&mut times) {
+    for (row, t) in rows.iter_mut().zip(&times) {
         row.clipmap_frame_ms = median(t);
     }
-    let largest = sessions.pop().expect("one size at least");
     drop(sessions);
 
     // Brute force on the sizes it can afford.
@@ -246,10 +243,9 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             t.push(ms);
             row.brute_triangles = Some(tris);
         }
-        row.brute_frame_ms = Some(median(&mut t));
+        row.brute_frame_ms = Some(median(&t));
     }
 
-    drop(largest);
     tick("incremental update");
     let update = update_test(opts)?;
     let first = &rows[0];
@@ -269,8 +265,9 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 
 /// The map of the update test: wide enough that the clipmap bounds allow
 /// L levels of n (the coarsest window must not already hold the whole map),
-/// a quarter as high (or 2^L + 1 rows if that is more). Its heights are a cheap pattern and its pyramid a box
-/// filter: writing a texel costs the same whatever its value.
+/// a quarter as high (or 2^L + 1 rows if that is more). Its heights are a
+/// cheap pattern and its pyramid a box filter: writing a texel costs the
+/// same whatever its value.
 pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
     let (w, h) = update_dims(n, levels)?;
     let values = (0..w * h)
@@ -278,7 +275,11 @@ pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
         .collect();
     let map = crate::heightmap::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
         .map_err(|r| Error::value("scaling.update", r))?;
-    Ok(Pyramid::build(&map, crate::pyramid::Filter::Box, levels))
+    Ok(Pyramid::from_heightmap(
+        map,
+        crate::pyramid::Filter::Box,
+        levels,
+    ))
 }
 
 /// The update map's size for n and L, or why there is none.
@@ -327,7 +328,7 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         full.push(t.elapsed().as_secs_f64() * 1e3);
         full_texels = s.texels_total;
     }
-    let full_ms = median(&mut full);
+    let full_ms = median(&full);
     // Four cycles of the coarsest level, so one preempted frame does not
     // decide the mean.
     let frames = 4usize << (opts.update_levels - 1);

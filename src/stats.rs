@@ -26,10 +26,30 @@ impl Passes {
         });
         out
     }
+    /// Total time of the passes named `names` (ms).
+    pub fn ms(&self, names: &[&str]) -> f64 {
+        pass_ms(&self.0, names)
+    }
     pub fn ran(&self, name: &str) -> bool {
         self.0.iter().any(|p| p.name == name)
     }
     pub fn total_ms(&self) -> f64 {
         self.0.iter().map(|p| p.ms).sum()
     }
+}
+
+/// Total time of the passes in `passes` named `names` (ms).
+pub fn pass_ms(passes: &[Pass], names: &[&str]) -> f64 {
+    passes
+        .iter()
+        .filter(|p| names.contains(&p.name.as_str()))
+        .map(|p| p.ms)
+        .sum()
+}
+
+/// The median of timings (the upper one of an even count).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[s.len() / 2]
 }

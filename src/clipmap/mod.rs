@@ -219,14 +219,14 @@ impl Clipmap {
         Rect::new(m.x0 >> l, m.y0 >> l, m.x1 >> l, m.y1 >> l)
     }
 
-    /// Moves every level to the viewer at base-grid position `viewer`,
-    /// rewriting only newly exposed texels, coarse levels first.
     /// Marks every level stale, so the next update rebuilds all texels (after
     /// the terrain under the clipmap changed, or to time a full rebuild).
     pub fn invalidate(&mut self) {
         self.levels.iter_mut().for_each(|l| l.heights.invalidate());
     }
 
+    /// Moves every level to the viewer at base-grid position `viewer`,
+    /// rewriting only newly exposed texels, coarse levels first.
     pub fn update(&mut self, viewer: [f64; 2]) -> UpdateStats {
         let count = self.levels.len();
         let viewer = if viewer[0].is_finite() && viewer[1].is_finite() {

@@ -6,7 +6,7 @@ use crate::camera::Camera;
 use crate::error::{write_atomic, Result};
 use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
 use crate::scene::Scene;
-use crate::stats::Passes;
+use crate::stats::{median, Passes};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -223,12 +223,6 @@ pub struct Bench {
     /// Per repeat, ms per frame.
     pub cpu_ms: Vec<f64>,
     pub gpu_ms: Vec<f64>,
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s[s.len() / 2]
 }
 
 /// Times raster + shade (CPU) against upload + draw + readback (GPU) of the

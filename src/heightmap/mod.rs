@@ -173,12 +173,12 @@ impl Heightmap {
                 (lo.min(v), hi.max(v))
             })
     }
-    /// The no-data mask in row-major order.
     /// Heights and no-data mask, row-major, without copying them (the
     /// pyramid takes them as its level 0).
     pub fn into_parts(self) -> (Vec<f32>, Vec<bool>) {
         (self.data, self.nodata)
     }
+    /// The no-data mask in row-major order.
     pub fn nodata_mask(&self) -> &[bool] {
         &self.nodata
     }

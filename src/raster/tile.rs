@@ -1,12 +1,12 @@
 //! Coverage and depth for one tile: the scalar path, one pixel at a time.
-//! `simd.rs` holds the 8-lane twin; both evaluate the same integer edge
-//! functions and the same FMA depth plane per pixel, so their bits agree.
+//! `simd.rs` holds the fast path; both decide coverage with the same integer
+//! edge functions and evaluate the same FMA depth plane per pixel, so their
+//! bits agree.
 
 use super::Tri;
 
-/// Row stride of a tile buffer: 64 pixels plus 8 of padding, so the 8-lane
-/// path can always load and store whole groups.
-pub const STRIDE: usize = super::bin::TILE as usize + 8;
+/// Row stride of a tile buffer.
+pub const STRIDE: usize = super::bin::TILE as usize;
 
 /// A tile's depth and triangle-id buffers.
 pub struct TileBuf {
@@ -22,9 +22,6 @@ impl TileBuf {
             prim: vec![super::NONE; n],
         }
     }
-}
-
-impl TileBuf {
     /// Back to the cleared state (depth 1.0, no triangle) for the next tile.
     pub fn clear(&mut self) {
         self.depth.fill(1.0);
