@@ -225,56 +225,95 @@ proptest! {
         special in prop::sample::select(vec![0.0f64, 1e-30, -1e-30, 0.05, -3.0]),
         which in 0usize..3,
     ) {
-        let (w, h, near, far) = (64u32, 48u32, 0.1, 100.0);
-        let aspect = w as f64 / h as f64;
         let mut p: Vec<DVec3> = v.iter().map(|a| DVec3::new(a[0], a[1], a[2])).collect();
         p[which].z = special;
-        let clip: Vec<[f32; 4]> = p.iter().map(|&q| project(q, near, far, aspect)).collect();
-        let mesh = Mesh { clip: &clip, attrs: &[], linear: &[], triangles: &[[0, 1, 2]], flat: &[0] };
-        for path in [RasterPath::Scalar, RasterPath::Simd] {
-            let r = raster::rasterise(&mesh, w, h, &Options { path });
-            let st = &r.stats;
-            prop_assert_eq!((st.non_finite_clipped, st.non_finite_planes, st.non_finite_depth), (0, 0, 0));
-            // f64 reference: the pixel ray hits the triangle between near and far.
-            let f = 1.0 / (30f64.to_radians()).tan();
-            // Does the ray through window point (x, y) hit the visible part?
-            let hit_at = |x: f64, y: f64| -> bool {
-                if x < 0.0 || y < 0.0 || x > w as f64 || y > h as f64 {
-                    return false;
+        near_plane_case(&p)?;
+    }
+}
+
+/// The near-plane property for one triangle `p` (camera space, eye at the
+/// origin looking down −z): see the proptest below.
+fn near_plane_case(p: &[DVec3]) -> Result<(), TestCaseError> {
+    let (w, h, near, far) = (64u32, 48u32, 0.1, 100.0);
+    let aspect = w as f64 / h as f64;
+    let clip: Vec<[f32; 4]> = p.iter().map(|&q| project(q, near, far, aspect)).collect();
+    let mesh = Mesh {
+        clip: &clip,
+        attrs: &[],
+        linear: &[],
+        triangles: &[[0, 1, 2]],
+        flat: &[0],
+    };
+    for path in [RasterPath::Scalar, RasterPath::Simd] {
+        let r = raster::rasterise(&mesh, w, h, &Options { path });
+        let st = &r.stats;
+        prop_assert_eq!(
+            (
+                st.non_finite_clipped,
+                st.non_finite_planes,
+                st.non_finite_depth
+            ),
+            (0, 0, 0)
+        );
+        // f64 reference: the pixel ray hits the triangle between near and far.
+        let f = 1.0 / (30f64.to_radians()).tan();
+        // Does the ray through window point (x, y) hit the visible part?
+        let hit_at = |x: f64, y: f64| -> bool {
+            if x < 0.0 || y < 0.0 || x > w as f64 || y > h as f64 {
+                return false;
+            }
+            let xn = x / w as f64 * 2.0 - 1.0;
+            let yn = 1.0 - y / h as f64 * 2.0;
+            let d = DVec3::new(xn * aspect / f, yn / f, -1.0);
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            let q = d.cross(e2);
+            let det = e1.dot(q);
+            if det.abs() < 1e-300 {
+                return false;
+            }
+            let s = -p[0];
+            let u = s.dot(q) / det;
+            let qq = s.cross(e1);
+            let vv = d.dot(qq) / det;
+            let t = e2.dot(qq) / det;
+            u >= -1e-9
+                && vv >= -1e-9
+                && u + vv <= 1.0 + 1e-9
+                && t >= near * 0.999
+                && t <= far * 1.001
+        };
+        for py in 0..h as i64 {
+            for px in 0..w as i64 {
+                if r.prim[(py * w as i64 + px) as usize] == raster::NONE {
+                    continue;
                 }
-                let xn = x / w as f64 * 2.0 - 1.0;
-                let yn = 1.0 - y / h as f64 * 2.0;
-                let d = DVec3::new(xn * aspect / f, yn / f, -1.0);
-                let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
-                let q = d.cross(e2);
-                let det = e1.dot(q);
-                if det.abs() < 1e-300 {
-                    return false;
-                }
-                let s = -p[0];
-                let u = s.dot(q) / det;
-                let qq = s.cross(e1);
-                let vv = d.dot(qq) / det;
-                let t = e2.dot(qq) / det;
-                u >= -1e-9 && vv >= -1e-9 && u + vv <= 1.0 + 1e-9 && t >= near * 0.999 && t <= far * 1.001
-            };
-            for py in 0..h as i64 {
-                for px in 0..w as i64 {
-                    if r.prim[(py * w as i64 + px) as usize] == raster::NONE {
-                        continue;
-                    }
-                    // Within one pixel of the visible part: the neighbours'
-                    // centres first, then (for slivers thinner than a pixel,
-                    // which centres can miss) a 1/8-pixel grid over the
-                    // square one pixel around this centre.
-                    let (cx, cy) = (px as f64 + 0.5, py as f64 + 0.5);
-                    let near_ok = (-1..=1).any(|dy| (-1..=1).any(|dx| hit_at(cx + dx as f64, cy + dy as f64)))
-                        || (-8..=8).any(|sy| (-8..=8).any(|sx| hit_at(cx + sx as f64 / 8.0, cy + sy as f64 / 8.0)));
-                    prop_assert!(near_ok, "stray pixel ({px}, {py}) for {p:?}");
-                }
+                // Within one pixel of the visible part: the neighbours'
+                // centres first, then (for slivers thinner than a pixel,
+                // which centres can miss) a 1/8-pixel grid over the
+                // square one pixel around this centre.
+                let (cx, cy) = (px as f64 + 0.5, py as f64 + 0.5);
+                let near_ok = (-1..=1)
+                    .any(|dy| (-1..=1).any(|dx| hit_at(cx + dx as f64, cy + dy as f64)))
+                    || (-8..=8).any(|sy| {
+                        (-8..=8).any(|sx| hit_at(cx + sx as f64 / 8.0, cy + sy as f64 / 8.0))
+                    });
+                prop_assert!(near_ok, "stray pixel ({px}, {py}) for {p:?}");
             }
         }
     }
+    Ok(())
+}
+
+/// The case CI found: a vertex on the eye plane leaves a visible sliver
+/// thinner than a pixel.
+#[test]
+fn near_plane_sliver_thinner_than_a_pixel() {
+    let p = [
+        DVec3::new(-1.9665442439469063, 7.561877132330072, 0.0),
+        DVec3::new(16.562545648013153, -4.16680194748704, -38.70706788553686),
+        DVec3::new(0.7017651099330541, 24.140160516820924, -16.935388456794794),
+    ];
+    near_plane_case(&p).unwrap();
 }
 
 /// A clipmap over `map` with every level, morph on.
