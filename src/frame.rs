@@ -78,7 +78,8 @@ impl Frame {
         let k = layout.len();
         let base = &pyramid.levels[0];
         let vs = world.vertical_scale as f32;
-        let (lo, hi) = (base.min * vs, base.max * vs);
+        let [lo, hi] = params.height_range.unwrap_or([base.min, base.max]);
+        let (lo, hi) = (lo * vs, hi * vs);
         let span = if hi > lo { hi - lo } else { 1.0 };
 
         let fog_rate = fog::rate(params.fog_density);

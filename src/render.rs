@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::frame::{Frame, FrameInput};
 use crate::lod::{Lod, LodUpdate, View};
 use crate::pyramid::Filter;
-use crate::pyramid::Pyramid;
+use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
@@ -66,6 +66,20 @@ pub struct RenderStats {
     pub lightmap_rays: usize,
     /// Normals computed: per vertex, plus normal-map texels.
     pub normals_computed: usize,
+    /// With `pyramid.lazy`: what the pyramid has built (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lazy: Option<LazyFrame>,
+}
+
+/// A lazy pyramid after a frame.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct LazyFrame {
+    #[serde(flatten)]
+    pub pyramid: LazyStats,
+    /// Samples built for this frame.
+    pub samples_this_frame: u64,
+    /// Coarsest levels not drawn because their tiles are not built yet.
+    pub levels_unbuilt: usize,
 }
 
 impl RenderStats {
@@ -147,7 +161,6 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
 /// so a camera path updates it incrementally.
 pub struct Session {
     pub world: WorldMap,
-    pub pyramid: Arc<Pyramid>,
     pub filter: Filter,
     pub lod: Box<dyn Lod>,
     /// What the last frame's LOD update changed.
@@ -161,21 +174,41 @@ pub struct Session {
 pub use crate::lod::clipmap::ClipFrame;
 
 impl Session {
+    /// The terrain pyramid, as the LOD scheme has built it so far.
+    pub fn pyramid(&self) -> &Pyramid {
+        self.lod.pyramid()
+    }
+
     /// Loads the heightmap and builds the pyramid (timed passes "terrain",
-    /// "pyramid").
+    /// "pyramid"). With `pyramid.lazy`, a procedural terrain is not
+    /// generated and nothing is filtered here: the clipmap's updates build
+    /// the tiles they need.
     pub fn new(scene: &Scene, passes: &mut Passes) -> Result<Session> {
-        let h = passes.time("terrain", || scene.heightmap())?;
-        let world = scene.world(&h);
         let filter = scene.filter()?;
         let cfg = scene.lod_config()?;
         let effects = scene.effects()?;
-        let count = cfg.pyramid_levels(h.width(), h.height());
-        let pyramid = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
-        let pyramid = Arc::new(pyramid);
-        let lod = scene.new_lod(&cfg, pyramid.clone())?;
+        let (pyramid, world) = if scene.pyramid.lazy {
+            let (base, world) = passes.time("terrain", || scene.lazy_base())?;
+            let [w, h] = match &base {
+                LazyBase::Procedural(p) => [p.width, p.height],
+                LazyBase::Heightmap(h) => [h.width(), h.height()],
+            };
+            let count = cfg.pyramid_levels(w, h);
+            let p = Pyramid::lazy(base, filter, count, scene.pyramid.budget)
+                .map_err(|r| Error::value(format!("{}: pyramid", scene.origin), r))?;
+            (p, world)
+        } else {
+            let h = passes.time("terrain", || scene.heightmap())?;
+            let world = scene.world(&h);
+            let count = cfg.pyramid_levels(h.width(), h.height());
+            let p = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
+            (p, world)
+        };
+        // The scheme holds the only reference, so a lazy pyramid grows in
+        // place.
+        let lod = scene.new_lod(&cfg, Arc::new(pyramid))?;
         Ok(Session {
             world,
-            pyramid,
             filter,
             lod,
             last_update: LodUpdate::default(),
@@ -206,7 +239,7 @@ impl Session {
         let clip = lod.take_clip_frame();
         let frame = Frame::build(
             FrameInput {
-                pyramid: &self.pyramid,
+                pyramid: self.lod.pyramid(),
                 filter: self.filter,
                 world: &self.world,
                 camera,
@@ -262,6 +295,7 @@ pub fn stats(
         raster,
         lightmap_rays: frame.resources.lightmap.as_ref().map_or(0, |l| l.rays),
         normals_computed,
+        lazy: None,
     }
 }
 
@@ -281,9 +315,21 @@ impl Session {
         opts: &RenderOptions,
         mut passes: Passes,
     ) -> Result<(Image, RenderStats)> {
-        let (frame, _) = self.frame(camera, &mut passes)?;
+        let (frame, clip) = self.frame(camera, &mut passes)?;
         let (image, raster) = draw(&frame, opts, &mut passes);
-        Ok((image, stats(&frame, "cpu", raster, passes)))
+        let mut s = stats(&frame, "cpu", raster, passes);
+        s.lazy = self.lazy_frame(clip.as_ref());
+        Ok((image, s))
+    }
+
+    /// The lazy pyramid's state after the frame `clip` was updated for.
+    pub fn lazy_frame(&self, clip: Option<&ClipFrame>) -> Option<LazyFrame> {
+        let update = clip.map(|c| &c.update);
+        self.pyramid().lazy_stats().map(|pyramid| LazyFrame {
+            pyramid,
+            samples_this_frame: update.map_or(0, |u| u.pyramid_samples),
+            levels_unbuilt: update.map_or(0, |u| u.levels_unbuilt),
+        })
     }
 
     /// The surface `camera`'s frame draws, for `height_at` and `ray_hit`
@@ -297,14 +343,14 @@ impl Session {
     /// world units (for placing cameras above the terrain).
     pub fn ground(&self, x: f64, y: f64) -> f64 {
         let g = self.world.to_grid(glam::DVec3::new(x, y, 0.0));
-        let z = self.pyramid.levels[0].get_clamped(g[0].round() as i64, g[1].round() as i64);
+        let z = self.pyramid().levels[0].get_clamped(g[0].round() as i64, g[1].round() as i64);
         z as f64 * self.world.vertical_scale
     }
 
     /// World extent of the map: (min corner, max corner) with the heights'
     /// range as z.
     pub fn extent(&self) -> (glam::DVec3, glam::DVec3) {
-        let b = &self.pyramid.levels[0];
+        let b = &self.pyramid().levels[0];
         self.world.aabb(
             0.0,
             0.0,

@@ -177,14 +177,14 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         s.validate()?;
         let mut passes = Passes::default();
         let session = Session::new(&s, &mut passes)?;
-        let (h, p) = bytes(&session.pyramid);
+        let (h, p) = bytes(session.pyramid());
         hm_bytes += h;
         pyr_bytes += p;
         rows.push(SizeRow {
             size,
             terrain_ms: passes.ms(&["terrain"]),
             pyramid_ms: passes.ms(&["pyramid"]),
-            pyramid_levels: session.pyramid.levels.len(),
+            pyramid_levels: session.pyramid().levels.len(),
             clipmap_frame_ms: 0.0,
             clipmap_triangles: 0,
             brute_frame_ms: None,

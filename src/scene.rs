@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use crate::heightmap::procedural::Procedural;
 use crate::heightmap::Heightmap;
 use crate::lod::{annulus, cdlod, geomipmap, roam, LodConfig};
-use crate::pyramid::{Filter, Pyramid};
+use crate::pyramid::{Filter, LazyBase, Pyramid};
 use crate::shade::{Effects, ShadeParams};
 use crate::world::WorldMap;
 use glam::DVec3;
@@ -69,6 +69,21 @@ fn one() -> f64 {
 pub struct PyramidSpec {
     #[serde(default = "default_filter")]
     pub filter: String,
+    /// Build the pyramid in tiles around the viewer as frames need them
+    /// (clipmap only), instead of whole before the first frame.
+    #[serde(default)]
+    pub lazy: bool,
+    /// Lazy pyramid: samples one frame may build (all levels counted); the
+    /// coarser levels that do not fit are drawn in later frames.
+    #[serde(default = "default_lazy_budget")]
+    pub budget: u64,
+}
+
+/// About 0.5 s of procedural generation and filtering on 2 cores.
+pub const DEFAULT_LAZY_BUDGET: u64 = 16 << 20;
+
+fn default_lazy_budget() -> u64 {
+    DEFAULT_LAZY_BUDGET
 }
 
 fn default_filter() -> String {
@@ -176,6 +191,8 @@ pub struct Scene {
 fn default_pyramid() -> PyramidSpec {
     PyramidSpec {
         filter: default_filter(),
+        lazy: false,
+        budget: DEFAULT_LAZY_BUDGET,
     }
 }
 
@@ -279,7 +296,67 @@ impl Scene {
         self.shading
             .validate()
             .map_err(|(field, reason)| self.bad(field, reason))?;
+        if self.pyramid.lazy {
+            self.check_lazy()?;
+        }
         Ok(())
+    }
+
+    /// What a lazy pyramid cannot serve: schemes other than the clipmap
+    /// read the whole map each frame, `shadows` and `normal-map` trace or
+    /// filter the whole base level, and the height-ramp colours need the
+    /// whole map's range unless the scene gives one.
+    fn check_lazy(&self) -> Result<()> {
+        if self.lod.scheme != "clipmap" {
+            return Err(self.bad(
+                "pyramid.lazy",
+                format!(
+                    "only the clipmap builds its pyramid lazily, not '{}'",
+                    self.lod.scheme
+                ),
+            ));
+        }
+        if self.pyramid.budget == 0 {
+            return Err(self.bad("pyramid.budget", "must be at least 1 sample"));
+        }
+        let e = self.effects()?;
+        for (on, name) in [(e.shadows, "shadows"), (e.normal_map, "normal-map")] {
+            if on {
+                return Err(self.bad(
+                    "pyramid.lazy",
+                    format!(
+                        "effect '{name}' reads the whole map, which a lazy pyramid has not built"
+                    ),
+                ));
+            }
+        }
+        if !e.level_tint && self.shading.height_range.is_none() {
+            return Err(self.bad(
+                "shading.height_range",
+                "a lazy pyramid cannot know the whole map's height range for the colour ramp: give [low, high] in metres",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The terrain as a lazy pyramid's level 0, and its world mapping: a
+    /// procedural terrain is not generated here, a file is loaded whole.
+    pub fn lazy_base(&self) -> Result<(LazyBase, WorldMap)> {
+        match &self.terrain.procedural {
+            Some(p) => {
+                p.validate()
+                    .map_err(|r| self.bad("terrain.procedural", r))?;
+                let cell = self.terrain.cell_size.as_ref().map_or([1.0; 2], cell_pair);
+                let world =
+                    WorldMap::new(cell, self.terrain.vertical_scale).placed_at(self.terrain.origin);
+                Ok((LazyBase::Procedural(p.clone()), world))
+            }
+            None => {
+                let h = self.heightmap()?;
+                let world = self.world(&h);
+                Ok((LazyBase::Heightmap(h), world))
+            }
+        }
     }
 
     /// Loads or generates the terrain, applying the scene's cell size.

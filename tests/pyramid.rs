@@ -72,3 +72,153 @@ fn build_is_identical_for_any_thread_count() {
         assert_eq!(x.data, y.data);
     }
 }
+
+mod lazy {
+    use proptest::prelude::*;
+    use terraclip::heightmap::procedural::Procedural;
+    use terraclip::pyramid::{Filter, LazyBase, Pyramid, TILE};
+
+    fn bits(v: &[f32]) -> Vec<u32> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// Every sample a lazy pyramid has built equals the eager pyramid's,
+    /// bit for bit, wherever it was built from and in whatever order; once
+    /// the windows cover everything, the pyramid is whole and equal to the
+    /// eager one, bounds included.
+    fn lazy_equals_eager(w: usize, h: usize, filter: Filter, budget: u64, windows: &[[i64; 4]]) {
+        let p = Procedural {
+            wavelength: 37.0,
+            octaves: 5,
+            ..Procedural::new(99, w, h)
+        };
+        let eager = Pyramid::from_heightmap(p.generate().unwrap(), filter, 6);
+        let mut lazy = Pyramid::lazy(LazyBase::Procedural(p), filter, 6, budget).unwrap();
+        assert_eq!(lazy.levels.len(), eager.levels.len());
+        // Each call asks for one window on every level, as a clipmap would.
+        for win in windows {
+            let per_level: Vec<[i64; 4]> = (0..lazy.levels.len())
+                .map(|l| win.map(|v| v >> l))
+                .collect();
+            let (ready, _) = lazy.build_around(&per_level);
+            assert!(ready >= 1, "level 0 is always built");
+            for (l, w) in per_level.iter().enumerate().take(ready) {
+                let (a, b) = (&lazy.levels[l], &eager.levels[l]);
+                for y in w[1].max(0)..=w[3].min(b.height as i64 - 1) {
+                    for x in w[0].max(0)..=w[2].min(b.width as i64 - 1) {
+                        let i = y as usize * b.width + x as usize;
+                        assert_eq!(
+                            a.data[i].to_bits(),
+                            b.data[i].to_bits(),
+                            "level {l} ({x}, {y})"
+                        );
+                        assert_eq!(a.nodata[i], b.nodata[i]);
+                    }
+                }
+                assert_eq!(
+                    lazy.range_in(l, *w),
+                    eager.range_in(l, *w),
+                    "level {l} bounds of {w:?}"
+                );
+            }
+        }
+        let everything = [0, 0, w as i64, h as i64];
+        let per_level: Vec<[i64; 4]> = (0..lazy.levels.len()).map(|_| everything).collect();
+        while !lazy.is_complete() {
+            lazy.build_around(&per_level);
+        }
+        for (a, b) in lazy.levels.iter().zip(&eager.levels) {
+            assert_eq!(bits(&a.data), bits(&b.data));
+            assert_eq!(a.nodata, b.nodata);
+            assert_eq!((a.min, a.max), (b.min, b.max));
+        }
+    }
+
+    #[test]
+    fn a_lazy_pyramid_grows_to_the_eager_one() {
+        let windows = [[100, 80, 160, 140], [-30, -30, 20, 400], [300, 0, 333, 20]];
+        lazy_equals_eager(333, 301, Filter::SincBlackman { taps: 11 }, 5_000, &windows);
+        lazy_equals_eager(200, 129, Filter::Box, u64::MAX, &windows);
+        lazy_equals_eager(129, 200, Filter::Point, 1, &windows);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        /// Random sizes, filters, budgets and windows.
+        #[test]
+        fn lazy_tiles_have_the_eager_bits(
+            w in 40usize..300, h in 40usize..300, budget in 1u64..40_000,
+            taps in prop::sample::select(vec![3usize, 11, 21]),
+            windows in prop::collection::vec((-50i64..350, -50i64..350, 0i64..120, 0i64..120), 1..5),
+        ) {
+            let windows: Vec<[i64; 4]> =
+                windows.iter().map(|&(x, y, a, b)| [x, y, x + a, y + b]).collect();
+            lazy_equals_eager(w, h, Filter::SincBlackman { taps }, budget, &windows);
+        }
+    }
+
+    /// Only what a frame needs is built: a 128-sample window on each of 3
+    /// levels around one point of a 4097² map (the coarsest covers 512²
+    /// base texels) builds under 10 % of the eager pyramid's samples.
+    #[test]
+    fn a_window_builds_only_the_tiles_under_it() {
+        let p = Procedural::new(5, 4097, 4097);
+        let mut lazy =
+            Pyramid::lazy(LazyBase::Procedural(p), Filter::default(), 3, u64::MAX).unwrap();
+        let windows: Vec<[i64; 4]> = (0..3)
+            .map(|l| [2000 >> l, 2000 >> l, (2000 >> l) + 127, (2000 >> l) + 127])
+            .collect();
+        let (ready, samples) = lazy.build_around(&windows);
+        let s = lazy.lazy_stats().unwrap();
+        let eager: u64 = lazy
+            .levels
+            .iter()
+            .map(|l| (l.width * l.height) as u64)
+            .sum();
+        println!("{s:?}: {samples} of {eager} samples");
+        assert_eq!(ready, 3);
+        assert_eq!(s.samples_built, samples);
+        assert!(samples * 10 < eager, "{samples} of {eager}");
+        assert!(!lazy.is_complete());
+    }
+
+    /// A budget too small for the coarse levels defers them and builds them
+    /// over later calls, overrunning the budget past level 0 by less than
+    /// one tile.
+    #[test]
+    fn a_small_budget_defers_coarse_levels() {
+        let p = Procedural::new(5, 1025, 1025);
+        let budget = 20_000;
+        let mut lazy =
+            Pyramid::lazy(LazyBase::Procedural(p), Filter::default(), 5, budget).unwrap();
+        let windows: Vec<[i64; 4]> = (0..5).map(|l| [0, 0, 1024 >> l, 1024 >> l]).collect();
+        let first = lazy.build_around(&windows);
+        assert!(first.0 < 5, "{first:?}");
+        let level0 = 1025u64 * 1025;
+        let tile = (TILE * TILE) as u64;
+        assert!(first.1 < level0 + budget + tile, "{first:?}");
+        let mut calls = 1;
+        loop {
+            let (ready, samples) = lazy.build_around(&windows);
+            assert!(samples > 0 && samples < budget + tile, "{samples}");
+            calls += 1;
+            if ready == 5 {
+                break;
+            }
+            assert!(calls < 1000, "progress stalled at {ready} levels");
+        }
+        assert!(lazy.is_complete());
+        println!("whole after {calls} calls");
+    }
+
+    #[test]
+    fn bad_lazy_settings_are_refused() {
+        let p = Procedural::new(5, 65, 65);
+        let e =
+            Pyramid::lazy(LazyBase::Procedural(p.clone()), Filter::default(), 3, 0).unwrap_err();
+        assert!(e.contains("budget"), "{e}");
+        let bad = Procedural { octaves: 0, ..p };
+        let e = Pyramid::lazy(LazyBase::Procedural(bad), Filter::default(), 3, 10).unwrap_err();
+        assert!(e.contains("octaves"), "{e}");
+    }
+}

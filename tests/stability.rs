@@ -634,7 +634,7 @@ fn query_counts(lod: &str, view: usize) -> (usize, usize, usize) {
     );
     let surface = Surface::new(&frame, &session.world);
     let size = [img.width, img.height];
-    let base = &session.pyramid.levels[0];
+    let base = &session.pyramid().levels[0];
     let (mut checked, mut bilinear_off, mut agree, mut silhouette) = (0, 0, 0, 0);
     for py in 0..img.height {
         for px in 0..img.width {

@@ -70,6 +70,11 @@ pub struct UpdateStats {
     pub texels_total: u64,
     /// Levels left stale (and inactive) because the budget ran out.
     pub levels_deferred: usize,
+    /// Coarsest levels left out (inactive) because a lazy pyramid has not
+    /// built their tiles yet.
+    pub levels_unbuilt: usize,
+    /// Pyramid samples a lazy pyramid built for this update.
+    pub pyramid_samples: u64,
 }
 
 /// A mesh vertex after the vertex stage: base-grid position and heights.
@@ -241,14 +246,27 @@ impl Clipmap {
             rects_per_level: vec![vec![]; count],
             ..Default::default()
         };
+        let ready = self.build_pyramid(&regions, &mut stats);
+        if ready < count {
+            // The ready levels are drawn as a clipmap of their own: the
+            // coarsest of them is cropped only by the map.
+            let params = RegionParams {
+                levels: ready,
+                ..self.params
+            };
+            let own = region::compute(&params, viewer);
+            regions[..ready].copy_from_slice(&own);
+            regions[ready..].iter_mut().for_each(|r| r.active = None);
+            stats.levels_unbuilt = count - ready;
+        }
         let mut budget = self.cfg.texel_budget.unwrap_or(u64::MAX);
         let mut deferred_from = None;
-        for l in (0..count).rev() {
+        for l in (0..ready).rev() {
             let lv = &mut self.levels[l];
             let origin = regions[l].origin;
             let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
             let needed: u64 = rects.iter().map(|r| r.area() as u64).sum();
-            if needed > budget && l + 1 < count {
+            if needed > budget && l + 1 < ready {
                 deferred_from = Some(l);
                 break;
             }
@@ -292,6 +310,35 @@ impl Clipmap {
             }
         }
         stats
+    }
+
+    /// For a lazy pyramid, builds the tiles under each level's window (one
+    /// texel wider, for normals and height bounds), finest first, within
+    /// the pyramid's budget; returns how many levels are ready. The pyramid
+    /// is shared copy-on-write: a clipmap that was cloned builds its own.
+    fn build_pyramid(
+        &mut self,
+        regions: &[region::LevelRegions],
+        stats: &mut UpdateStats,
+    ) -> usize {
+        if self.pyramid.is_complete() {
+            return self.levels.len();
+        }
+        let n = self.n;
+        let windows: Vec<[i64; 4]> = regions
+            .iter()
+            .map(|r| {
+                [
+                    r.origin[0] - 1,
+                    r.origin[1] - 1,
+                    r.origin[0] + n,
+                    r.origin[1] + n,
+                ]
+            })
+            .collect();
+        let (ready, samples) = Arc::make_mut(&mut self.pyramid).build_around(&windows);
+        stats.pyramid_samples = samples;
+        ready
     }
 
     /// The vertex stage for level `l` at level texel (x, y): stitching

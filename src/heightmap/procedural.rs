@@ -80,8 +80,8 @@ impl Procedural {
         sum * self.amplitude
     }
 
-    /// Generates the heightmap (cell size 1 m; the scene scales it).
-    pub fn generate(&self) -> Result<Heightmap, String> {
+    /// Checks the parameters `generate` and lazy generation rely on.
+    pub fn validate(&self) -> Result<(), String> {
         super::check_dimensions(self.width as u64, self.height as u64)?;
         if !(self.wavelength.is_finite() && self.wavelength > 0.0) {
             return Err("procedural wavelength must be positive".into());
@@ -92,37 +92,18 @@ impl Procedural {
         if !self.amplitude.is_finite() {
             return Err("procedural amplitude must be finite".into());
         }
+        Ok(())
+    }
+
+    /// Generates the heightmap (cell size 1 m; the scene scales it).
+    pub fn generate(&self) -> Result<Heightmap, String> {
+        self.validate()?;
         let mut values = vec![0f32; self.width * self.height];
         let freqs: Vec<f64> = self.frequencies().collect();
         values
             .par_chunks_mut(self.width)
             .enumerate()
-            .for_each(|(y, row)| {
-                // Per octave, the gradients of the two lattice rows around
-                // this texel row: about 2 (cos, sin) pairs per texel where
-                // sampling each texel alone needs 32.
-                let tables: Vec<RowTable> = (0..self.octaves)
-                    .zip(&freqs)
-                    .map(|(o, &f)| {
-                        let cy = (y as f64 * f).floor() as i64;
-                        let nx = ((row.len() - 1) as f64 * f).floor() as usize + 2;
-                        let seed = self.octave_seed(o);
-                        let t = (0..2)
-                            .flat_map(|dy| {
-                                (0..nx).map(move |cx| gradient(seed, cx as i64, cy + dy))
-                            })
-                            .collect();
-                        (cy, nx, t)
-                    })
-                    .collect();
-                let grad = |o: u32, cx: i64, cy: i64| {
-                    let (cy0, nx, t) = &tables[o as usize];
-                    t[(cy - cy0) as usize * nx + cx as usize]
-                };
-                for (x, v) in row.iter_mut().enumerate() {
-                    *v = self.sample_with(x as f64, y as f64, grad) as f32;
-                }
-            });
+            .for_each(|(y, row)| self.fill_row(&freqs, y, 0, row));
         Heightmap::from_values(
             self.width,
             self.height,
@@ -132,11 +113,50 @@ impl Procedural {
             "procedural",
         )
     }
+
+    /// Heights of texels `[x0, x1) × [y0, y1)`, row-major: a tile of the map
+    /// without generating the rest (the lazy pyramid's level 0), with the
+    /// bits `generate` gives there.
+    pub fn generate_rect(&self, [x0, y0, x1, y1]: [usize; 4]) -> Vec<f32> {
+        let freqs: Vec<f64> = self.frequencies().collect();
+        let mut values = vec![0f32; (x1 - x0) * (y1 - y0)];
+        for (y, row) in (y0..y1).zip(values.chunks_exact_mut(x1 - x0)) {
+            self.fill_row(&freqs, y, x0, row);
+        }
+        values
+    }
+
+    /// Texels `x0 ..` of row `y`. Per octave it looks up the gradients of
+    /// the two lattice rows around the texel row over the columns it spans:
+    /// about 2 (cos, sin) pairs per texel where sampling each texel alone
+    /// needs 32.
+    fn fill_row(&self, freqs: &[f64], y: usize, x0: usize, row: &mut [f32]) {
+        let tables: Vec<RowTable> = (0..self.octaves)
+            .zip(freqs)
+            .map(|(o, &f)| {
+                let cy = (y as f64 * f).floor() as i64;
+                let cx = (x0 as f64 * f).floor() as i64;
+                let nx = ((x0 + row.len() - 1) as f64 * f).floor() as i64 - cx + 2;
+                let seed = self.octave_seed(o);
+                let t = (0..2)
+                    .flat_map(|dy| (0..nx).map(move |i| gradient(seed, cx + i, cy + dy)))
+                    .collect();
+                ([cx, cy], nx as usize, t)
+            })
+            .collect();
+        let grad = |o: u32, cx: i64, cy: i64| {
+            let ([cx0, cy0], nx, t) = &tables[o as usize];
+            t[(cy - cy0) as usize * nx + (cx - cx0) as usize]
+        };
+        for (i, v) in row.iter_mut().enumerate() {
+            *v = self.sample_with((x0 + i) as f64, y as f64, grad) as f32;
+        }
+    }
 }
 
-/// Per octave: the first lattice row, the lattice columns per row, and the
-/// (cos, sin) gradients of two lattice rows.
-type RowTable = (i64, usize, Vec<(f64, f64)>);
+/// Per octave: the first lattice column and row, the lattice columns per
+/// row, and the (cos, sin) gradients of two lattice rows.
+type RowTable = ([i64; 2], usize, Vec<(f64, f64)>);
 
 fn hash(seed: u64, x: i64, y: i64) -> u64 {
     let mut h = seed ^ (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
@@ -205,6 +225,23 @@ mod tests {
                 for x in 0..67 {
                     let want = p.sample(x as f64, y as f64) as f32;
                     assert_eq!(m.get(x, y).to_bits(), want.to_bits(), "{wl} ({x}, {y})");
+                }
+            }
+            for rect in [
+                [0, 0, 67, 41],
+                [13, 7, 14, 8],
+                [30, 20, 67, 41],
+                [1, 0, 5, 41],
+            ] {
+                let v = p.generate_rect(rect);
+                let w = rect[2] - rect[0];
+                for (i, got) in v.iter().enumerate() {
+                    let (x, y) = (rect[0] + i % w, rect[1] + i / w);
+                    assert_eq!(
+                        got.to_bits(),
+                        m.get(x, y).to_bits(),
+                        "{wl} {rect:?} ({x}, {y})"
+                    );
                 }
             }
         }

@@ -100,6 +100,9 @@ impl Lod for Annulus {
     fn name(&self) -> &'static str {
         "annulus"
     }
+    fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
 
     fn update(&mut self, view: &View) -> LodUpdate {
         self.eye = view.world.to_grid(view.camera.eye);

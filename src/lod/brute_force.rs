@@ -27,6 +27,9 @@ impl Lod for BruteForce {
     fn name(&self) -> &'static str {
         "brute-force"
     }
+    fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
     fn update(&mut self, _: &View) -> LodUpdate {
         LodUpdate::default()
     }

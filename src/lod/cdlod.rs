@@ -196,6 +196,9 @@ impl Lod for Cdlod {
     fn name(&self) -> &'static str {
         "cdlod"
     }
+    fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
 
     fn update(&mut self, view: &View) -> LodUpdate {
         self.ranges = self.ranges(view);

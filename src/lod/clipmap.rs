@@ -5,6 +5,7 @@
 
 use super::{LevelInfo, Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
+use crate::pyramid::Pyramid;
 
 /// The clipmap state a frame was made from, for a back end that draws from
 /// its own copy of the toroidal levels.
@@ -50,6 +51,10 @@ impl Lod for ClipmapLod {
     fn mesh(&mut self, view: &View) -> LodMesh {
         self.meshes = self.cm.meshes(Some((view.frustum, view.world)));
         from_level_meshes(&self.cm, &self.meshes)
+    }
+
+    fn pyramid(&self) -> &Pyramid {
+        self.cm.pyramid()
     }
 
     fn clipmap(&self) -> Option<&Clipmap> {

@@ -289,6 +289,9 @@ impl Lod for GeoMipMap {
     fn name(&self) -> &'static str {
         "geomipmap"
     }
+    fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
 
     fn update(&mut self, view: &View) -> LodUpdate {
         let n = self.levels.len();

@@ -157,6 +157,9 @@ pub trait Lod: Send {
     fn update(&mut self, view: &View) -> LodUpdate;
     /// The triangles for the view, culled to its frustum.
     fn mesh(&mut self, view: &View) -> LodMesh;
+    /// The terrain the scheme draws from (the frame reads normals and
+    /// bounds from it; a lazy one grows as the scheme updates).
+    fn pyramid(&self) -> &Pyramid;
     /// The clipmap, for a back end that draws from its own toroidal copy.
     fn clipmap(&self) -> Option<&Clipmap> {
         None

@@ -396,6 +396,9 @@ impl Lod for Roam {
     fn name(&self) -> &'static str {
         "roam"
     }
+    fn pyramid(&self) -> &Pyramid {
+        &self.pyramid
+    }
 
     fn update(&mut self, view: &View) -> LodUpdate {
         let tau = self.cfg.tau;

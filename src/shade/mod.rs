@@ -111,6 +111,10 @@ pub struct ShadeParams {
     /// Lightmap samples per heightmap texel along each axis: 1 or 2.
     pub lightmap_scale: u32,
     pub wire_colour: [f32; 3],
+    /// Heights (metres, before vertical scale) the colour ramp spans; the
+    /// map's own range if absent. A lazy pyramid needs it: it has not seen
+    /// the whole map.
+    pub height_range: Option<[f32; 2]>,
 }
 
 impl Default for ShadeParams {
@@ -125,6 +129,7 @@ impl Default for ShadeParams {
             shadow_epsilon: 20.0,
             lightmap_scale: 1,
             wire_colour: [0.05, 0.05, 0.08],
+            height_range: None,
         }
     }
 }
@@ -162,6 +167,14 @@ impl ShadeParams {
         }
         if !matches!(self.lightmap_scale, 1 | 2) {
             return Err(("shading.lightmap_scale", "must be 1 or 2".into()));
+        }
+        if let Some([lo, hi]) = self.height_range {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return Err((
+                    "shading.height_range",
+                    format!("need finite low < high, got [{lo}, {hi}]"),
+                ));
+            }
         }
         let colours = self.fog_colour.iter().chain([&self.wire_colour]);
         if colours.flatten().any(|c| !(0.0..=1.0).contains(c)) {
