@@ -103,6 +103,18 @@ fn tile_block(l: &PyramidLevel, [i, j]: [usize; 2]) -> Block {
     }
 }
 
+/// The level-(l − 1) samples that tile `t` of level `lv` (level l) reads
+/// with a kernel of radius `r`.
+fn inputs(lv: &PyramidLevel, t: [usize; 2], r: i64) -> [i64; 4] {
+    let b = tile_block(lv, t);
+    [
+        2 * b.x0 as i64 - r,
+        2 * b.y0 as i64 - r,
+        2 * (b.x1 as i64 - 1) + r,
+        2 * (b.y1 as i64 - 1) + r,
+    ]
+}
+
 impl Pyramid {
     /// A pyramid of up to `count` levels that builds its tiles when
     /// [`Pyramid::build_around`] asks for them, about `budget` samples per
@@ -231,38 +243,60 @@ impl Pyramid {
     }
 
     /// Builds the missing tiles of level `l` over `rect`, and first what
-    /// they read, while `budget` (samples) lasts: a tile starts only while
-    /// some is left, so a call overruns it by less than one tile. True when
-    /// all exist.
+    /// they read, while `budget` (samples) lasts. It plans top-down (the
+    /// missing tiles of each finer level that the coarser ones' taps reach)
+    /// and builds bottom-up, one parallel batch per level, so a frame's
+    /// tiles are built in a few large batches. A batch takes tiles while
+    /// budget is left, so any budget makes progress and a call overruns it
+    /// by less than one tile. True when all of level `l`'s tiles exist.
     fn ensure(&mut self, l: usize, rect: [i64; 4], budget: &mut u64) -> bool {
         let Some(z) = &self.lazy else { return true };
-        let missing = z.tiles[l].missing(&self.levels[l], rect);
-        if missing.is_empty() {
+        let r = (z.kernel.len() / 2) as i64;
+        let mut plan = vec![Vec::new(); l + 1];
+        plan[l] = z.tiles[l].missing(&self.levels[l], rect);
+        if plan[l].is_empty() {
             return true;
         }
-        let r = (z.kernel.len() / 2) as i64;
-        let mut ready = Vec::with_capacity(missing.len());
-        for &t in &missing {
-            let b = tile_block(&self.levels[l], t);
-            let inputs = [
-                2 * b.x0 as i64 - r,
-                2 * b.y0 as i64 - r,
-                2 * (b.x1 as i64 - 1) + r,
-                2 * (b.y1 as i64 - 1) + r,
-            ];
-            // A tile starts while budget is left and may overrun it, so
-            // any budget makes progress; its inputs may spend the rest.
-            if *budget == 0 || (l > 0 && !self.ensure(l - 1, inputs, budget)) {
-                break;
+        for k in (1..=l).rev() {
+            let (tiles, level) = (&z.tiles[k - 1], &self.levels[k - 1]);
+            let mut wanted = vec![false; tiles.done.len()];
+            let mut below = Vec::new();
+            for &t in &plan[k] {
+                for u in tiles.missing(level, inputs(&self.levels[k], t, r)) {
+                    let i = u[1] * tiles.nx + u[0];
+                    if !wanted[i] {
+                        wanted[i] = true;
+                        below.push(u);
+                    }
+                }
             }
-            if *budget == 0 {
-                break;
-            }
-            *budget = budget.saturating_sub(b.len() as u64);
-            ready.push(t);
+            plan[k - 1] = below;
         }
-        self.build_tiles(l, &ready);
-        ready.len() == missing.len()
+        for (k, want) in plan.iter().enumerate() {
+            if *budget == 0 {
+                return false;
+            }
+            let z = self.lazy.as_ref().expect("lazy pyramid");
+            let mut batch = Vec::with_capacity(want.len());
+            for &t in want {
+                if *budget == 0 {
+                    break;
+                }
+                let ready = k == 0 || {
+                    let (tiles, level) = (&z.tiles[k - 1], &self.levels[k - 1]);
+                    tiles
+                        .missing(level, inputs(&self.levels[k], t, r))
+                        .is_empty()
+                };
+                if ready {
+                    *budget = budget.saturating_sub(tile_block(&self.levels[k], t).len() as u64);
+                    batch.push(t);
+                }
+            }
+            self.build_tiles(k, &batch);
+        }
+        let z = self.lazy.as_ref().expect("lazy pyramid");
+        z.tiles[l].missing(&self.levels[l], rect).is_empty()
     }
 
     /// Computes tiles `ts` of level `l` (their inputs exist) in parallel,
