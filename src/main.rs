@@ -46,6 +46,12 @@ struct ScalingArgs {
     update_n: i64,
     #[arg(long, default_value_t = 10)]
     update_levels: usize,
+    /// n of the lazy first-frame test (largest size, every level).
+    #[arg(long, default_value_t = 255)]
+    first_n: i64,
+    /// Lazy pyramid samples per frame in the first-frame test.
+    #[arg(long, default_value_t = terraclip::scene::DEFAULT_LAZY_BUDGET)]
+    first_budget: u64,
     #[arg(long)]
     json: bool,
 }
@@ -60,6 +66,8 @@ impl ScalingArgs {
             brute_max: self.brute_max,
             update_n: self.update_n,
             update_levels: self.update_levels,
+            first_n: self.first_n,
+            first_budget: self.first_budget,
             ..Default::default()
         }
     }
@@ -602,6 +610,24 @@ fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_value(&r)?);
         return Ok(());
+    }
+    let f = &r.first_frame;
+    println!(
+        "lazy first frame of {}² (n = {}, {} of {} levels drawn, budget {}): {:.0} ms (target < 1000), {} tris, {} of {} pyramid samples built, peak RSS {} MB",
+        f.size,
+        f.n,
+        f.levels_drawn,
+        f.levels,
+        f.budget,
+        f.first_frame_ms,
+        f.triangles,
+        f.samples_built,
+        f.eager_samples,
+        f.peak_rss_bytes.map_or("?".into(), |b| (b >> 20).to_string()),
+    );
+    match (f.frames_to_all_levels, f.all_levels_ms) {
+        (Some(n), Some(ms)) => println!("  every level drawn after {n} more frames ({ms:.0} ms)"),
+        _ => println!("  not every level drawn within the frame limit"),
     }
     println!("size     terrain    pyramid   clipmap frame   brute-force frame");
     for row in &r.sizes {

@@ -40,6 +40,12 @@ pub struct Options {
     pub update_n: i64,
     pub update_levels: usize,
     pub image: [u32; 2],
+    /// n of the lazy first-frame test on the largest size (every level
+    /// the map allows), and the lazy pyramid's samples per frame.
+    pub first_n: i64,
+    pub first_budget: u64,
+    /// Frames the first-frame test may render until every level is drawn.
+    pub first_max_frames: usize,
 }
 
 impl Default for Options {
@@ -53,6 +59,9 @@ impl Default for Options {
             update_n: 255,
             update_levels: 10,
             image: [960, 540],
+            first_n: 255,
+            first_budget: crate::scene::DEFAULT_LAZY_BUDGET,
+            first_max_frames: 100,
         }
     }
 }
@@ -111,8 +120,35 @@ pub struct MemoryRow {
     pub ratio: Option<f64>,
 }
 
+/// The first frame of the largest terrain with a lazy pyramid: nothing is
+/// generated before the clipmap's first update asks for its tiles.
+#[derive(Clone, Debug, Serialize)]
+pub struct FirstFrameRow {
+    pub size: usize,
+    pub n: i64,
+    /// Clipmap levels (all the map allows) and how many the first frame
+    /// drew; the coarser ones wait for their tiles.
+    pub levels: usize,
+    pub levels_drawn: usize,
+    pub budget: u64,
+    /// Scene to image: session, pyramid tiles, LOD, mesh, raster, shade.
+    pub first_frame_ms: f64,
+    pub triangles: usize,
+    /// Pyramid samples the first frame built, and an eager pyramid's.
+    pub samples_built: u64,
+    pub eager_samples: u64,
+    /// Peak resident memory up to the first frame.
+    pub peak_rss_bytes: Option<u64>,
+    /// The same view kept still: frames until every level is drawn, and
+    /// their total time (`None` if `first_max_frames` did not suffice).
+    pub frames_to_all_levels: Option<usize>,
+    pub all_levels_ms: Option<f64>,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
+    /// Lazy first frame of the largest size; the target is < 1 s.
+    pub first_frame: FirstFrameRow,
     pub sizes: Vec<SizeRow>,
     /// Clipmap frame time, largest ÷ smallest size; the target is ≤ 1.05.
     pub clipmap_ratio: f64,
@@ -167,6 +203,10 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     }
     // Checked before the long work, not after it.
     update_dims(opts.update_n, opts.update_levels)?;
+    scene(base, opts.sizes[0], "clipmap", opts).validate()?;
+    // First, in a process that has built nothing yet.
+    tick("lazy first frame");
+    let first_frame = first_frame(base, opts)?;
     reset_peak_rss();
     let mut sessions = Vec::new();
     let mut rows = Vec::new();
@@ -200,15 +240,9 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         ratio: peak.map(|p| p as f64 / (hm_bytes + pyr_bytes) as f64),
     };
 
-    // Interleaved frames: one of each size per step of the pan.
-    // The scene's view, moved so its eye is over the smallest map's centre.
-    let mut cam = base.camera();
-    cam.aspect = opts.image[0] as f64 / opts.image[1] as f64;
-    let mid = opts.sizes[0] as f64 / 2.0;
-    let centre = sessions[0].world.to_world(mid, mid, 0.0);
-    let shift = glam::DVec3::new(centre.x - cam.eye.x, centre.y - cam.eye.y, 0.0);
-    cam.eye += shift;
-    cam.target += shift;
+    // Interleaved frames: one of each size per step of the pan, eye over
+    // the smallest map's centre.
+    let cam = centred_camera(base, &sessions[0], opts.sizes[0], opts);
     let step = sessions[0].world.cell[0];
     let mut times = vec![Vec::new(); sessions.len()];
     for f in 0..=opts.frames {
@@ -255,12 +289,93 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         brute[brute.len() - 1].brute_frame_ms.expect("ran") / brute[0].brute_frame_ms.expect("ran")
     });
     Ok(Report {
+        first_frame,
         clipmap_ratio: last.clipmap_frame_ms / first.clipmap_frame_ms,
         brute_ratio,
         sizes: rows,
         update,
         memory,
     })
+}
+
+/// The lazy first frame of the largest size with every level the map
+/// allows, eye over the map's centre, then the same view until all levels
+/// are drawn.
+fn first_frame(base: &Scene, opts: &Options) -> Result<FirstFrameRow> {
+    let size = *opts.sizes.last().expect("one size at least");
+    let mut s = scene(base, size, "clipmap", opts);
+    s.lod.n = opts.first_n;
+    s.lod.levels = None;
+    s.pyramid.lazy = true;
+    s.pyramid.budget = opts.first_budget;
+    if s.shading.height_range.is_none() {
+        // A ramp over ± amplitude / 2, most of the generator's heights
+        // (the ramp clamps beyond): colours do not change the timing.
+        let a = s.terrain.procedural.as_ref().map_or(600.0, |p| p.amplitude) as f32;
+        s.shading.height_range = Some([-a / 2.0, a / 2.0]);
+    }
+    s.validate()?;
+    reset_peak_rss();
+    let t = Instant::now();
+    let mut session = Session::new(&s, &mut Passes::default())?;
+    let cam = centred_camera(base, &session, size, opts);
+    let opts_r = RenderOptions::default();
+    let (img, stats) = session.render(&cam, &opts_r, Passes::default())?;
+    let first_frame_ms = t.elapsed().as_secs_f64() * 1e3;
+    std::hint::black_box(img);
+    let peak_rss_bytes = peak_rss();
+    let lazy = stats.lazy.clone().expect("lazy scene");
+    let levels = stats.levels_drawn + lazy.levels_unbuilt;
+    let eager_samples = session
+        .pyramid()
+        .levels
+        .iter()
+        .map(|l| (l.width * l.height) as u64)
+        .sum();
+    let mut rest = None;
+    if lazy.levels_unbuilt > 0 {
+        let t = Instant::now();
+        for f in 1..=opts.first_max_frames {
+            let (_, st) = session.render(&cam, &opts_r, Passes::default())?;
+            if st.lazy.is_some_and(|z| z.levels_unbuilt == 0) {
+                rest = Some((f, t.elapsed().as_secs_f64() * 1e3));
+                break;
+            }
+        }
+    } else {
+        rest = Some((0, 0.0));
+    }
+    Ok(FirstFrameRow {
+        size,
+        n: opts.first_n,
+        levels,
+        levels_drawn: stats.levels_drawn,
+        budget: opts.first_budget,
+        first_frame_ms,
+        triangles: stats.triangles,
+        samples_built: lazy.pyramid.samples_built,
+        eager_samples,
+        peak_rss_bytes,
+        frames_to_all_levels: rest.map(|r| r.0),
+        all_levels_ms: rest.map(|r| r.1),
+    })
+}
+
+/// The scene's view, moved so its eye is over the centre of a `size`² map.
+fn centred_camera(
+    base: &Scene,
+    session: &Session,
+    size: usize,
+    opts: &Options,
+) -> crate::camera::Camera {
+    let mut cam = base.camera();
+    cam.aspect = opts.image[0] as f64 / opts.image[1] as f64;
+    let mid = size as f64 / 2.0;
+    let centre = session.world.to_world(mid, mid, 0.0);
+    let shift = glam::DVec3::new(centre.x - cam.eye.x, centre.y - cam.eye.y, 0.0);
+    cam.eye += shift;
+    cam.target += shift;
+    cam
 }
 
 /// The map of the update test: wide enough that the clipmap bounds allow

@@ -66,6 +66,9 @@ fn scaling_report_figures() {
         update_n: 31,
         update_levels: 4,
         image: [96, 54],
+        first_n: 31,
+        first_budget: 20_000,
+        first_max_frames: 200,
     };
     let mut base = Scene::default_scene();
     base.camera.position = [1280.0, -1280.0, 500.0];
@@ -90,6 +93,20 @@ fn scaling_report_figures() {
     if cfg!(target_os = "linux") {
         assert!(r.memory.peak_rss_bytes.unwrap() > 0);
     }
+    // The lazy first frame of the 512² map: every level n = 31 allows
+    // (`region::max_levels`: 7), the coarser ones deferred by the small
+    // budget and drawn within the frame limit; part of the pyramid built
+    // at first.
+    let f = &r.first_frame;
+    assert_eq!((f.size, f.n, f.levels), (512, 31, 7));
+    assert!(f.levels_drawn >= 1 && f.levels_drawn < f.levels, "{f:?}");
+    assert!(f.samples_built < f.eager_samples, "{f:?}");
+    let all: u64 = [512u64, 256, 128, 64, 32, 16, 8]
+        .iter()
+        .map(|s| s * s)
+        .sum();
+    assert_eq!(f.eager_samples, all);
+    assert!(f.frames_to_all_levels.is_some_and(|n| n >= 1), "{f:?}");
 }
 
 /// Bad settings are errors that name the setting, found before any map is
@@ -105,6 +122,9 @@ fn bad_scaling_options_are_errors() {
         update_n: 31,
         update_levels: 4,
         image: [32, 18],
+        first_n: 31,
+        first_budget: 1000,
+        first_max_frames: 5,
     };
     let cases = [
         (
@@ -155,6 +175,20 @@ fn bad_scaling_options_are_errors() {
                 ..ok.clone()
             },
             "lod.n",
+        ),
+        (
+            Options {
+                first_n: 100,
+                ..ok.clone()
+            },
+            "lod.n",
+        ),
+        (
+            Options {
+                first_budget: 0,
+                ..ok.clone()
+            },
+            "pyramid.budget",
         ),
     ];
     for (opts, word) in cases {
