@@ -113,3 +113,24 @@ fn brute_force_passthrough_matches_the_cpu() {
     eprintln!("brute force: {res:?}");
     assert!(res.pass && res.triangles > 100_000, "{res:?}");
 }
+
+/// A lazy pyramid whose coarse levels join over the path (a small budget):
+/// the GPU's textures follow levels that appear mid-path.
+#[test]
+fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let mut scene = Scene::default_scene();
+    scene.pyramid.lazy = true;
+    scene.pyramid.budget = 100_000;
+    scene.shading.height_range = Some([-300.0, 300.0]);
+    scene.image.width = 192;
+    scene.image.height = 108;
+    scene.validate().unwrap();
+    let res = parity::check(&mut r, &scene, "lazy", 30, 37.0, &out(), exact).unwrap();
+    eprintln!("lazy path: {res:?}");
+    assert!(res.pass, "{res:?}");
+    if exact {
+        assert_eq!((res.colour_px_differ, res.depth_px_differ), (0, 0));
+    }
+}

@@ -82,14 +82,16 @@ pub struct SceneParity {
 }
 
 /// Draws `session`'s frame for `camera` on the GPU (the clipmap path when the
-/// scene has a clipmap), with the update since the previous call.
+/// scene has a clipmap), with the update since the previous call; also the
+/// lazy pyramid's state after it, for a lazy scene.
 pub fn gpu_frame(
     r: &mut GpuRenderer,
     session: &mut Session,
     camera: &Camera,
     passes: &mut Passes,
-) -> Result<(crate::frame::Frame, Image)> {
+) -> Result<(crate::frame::Frame, Image, Option<render::LazyFrame>)> {
     let (frame, clip) = session.frame(camera, passes)?;
+    let lazy = session.lazy_frame(clip.as_ref());
     let image = passes.time("gpu", || {
         draw_session(
             r,
@@ -99,7 +101,7 @@ pub fn gpu_frame(
             clip.as_ref().map(|c| &c.update),
         )
     })?;
-    Ok((frame, image))
+    Ok((frame, image, lazy))
 }
 
 /// Draws `frame` from the session's clipmap textures when it has a
@@ -131,8 +133,9 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     let mut session = Session::new(scene, &mut passes)?;
     // A new session's textures must be written in full.
     r.forget_textures();
-    let (frame, image) = gpu_frame(r, &mut session, &scene.camera(), &mut passes)?;
-    let stats = render::stats(&frame, "gpu", Default::default(), passes);
+    let (frame, image, lazy) = gpu_frame(r, &mut session, &scene.camera(), &mut passes)?;
+    let mut stats = render::stats(&frame, "gpu", Default::default(), passes);
+    stats.lazy = lazy;
     Ok((image, stats))
 }
 
@@ -165,7 +168,7 @@ pub fn check(
         let cam = path_camera(&base, i, step);
         let (frame, _) = cpu.frame(&cam, &mut passes)?;
         let (want, _) = render::draw(&frame, &opts, &mut passes);
-        let (gframe, got) = gpu_frame(r, &mut gpu, &cam, &mut passes)?;
+        let (gframe, got, _) = gpu_frame(r, &mut gpu, &cam, &mut passes)?;
         triangles = triangles.max(gframe.triangle_count());
         if i > 0 {
             uploaded += r.texels_uploaded();
