@@ -1,9 +1,10 @@
 //! Pyramid build time per filter on the ETOPO5 DEM when present (else a
-//! procedural map of similar size).
+//! procedural map of similar size); procedural generation, eager and as
+//! lazy tiles under a clipmap's first windows.
 use criterion::{criterion_group, criterion_main, Criterion};
 use terraclip::heightmap::procedural::Procedural;
 use terraclip::heightmap::Heightmap;
-use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::pyramid::{Filter, LazyBase, Pyramid};
 
 fn bench(c: &mut Criterion) {
     let etopo = std::path::Path::new("../shared/data/dem/etopo5_16.png");
@@ -21,6 +22,27 @@ fn bench(c: &mut Criterion) {
             b.iter(|| Pyramid::build(&map, f, 8))
         });
     }
+    // The same texels generated whole, and as the lazy pyramid's tiles
+    // under the windows of a first frame (n = 255, 4 levels, every sample
+    // of them built) on a 16384² map.
+    let gen = Procedural::new(1, 2048, 2048);
+    c.bench_function("procedural_2048x2048", |b| {
+        b.iter(|| gen.generate().unwrap())
+    });
+    let big = Procedural::new(1, 16384, 16384);
+    let windows: Vec<[i64; 4]> = (0..4)
+        .map(|l| {
+            let o = (8192 >> l) - 127;
+            [o - 1, o - 1, o + 255, o + 255]
+        })
+        .collect();
+    c.bench_function("lazy_first_windows_16384_n255_l4", |b| {
+        b.iter(|| {
+            let base = LazyBase::Procedural(big.clone());
+            let mut p = Pyramid::lazy(base, Filter::default(), 9, u64::MAX).unwrap();
+            p.build_around(&windows)
+        })
+    });
 }
 
 criterion_group! {
