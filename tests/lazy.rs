@@ -126,3 +126,35 @@ fn lazy_scenes_refuse_what_needs_the_whole_map() {
     s.effects = vec!["level-tint".into()];
     s.validate().unwrap();
 }
+
+/// A loaded map keeps its level 0 whole and builds only the coarser levels
+/// lazily; with a small budget the frames match the eager ones once every
+/// level is drawn, and the first one draws fewer levels.
+#[test]
+fn a_file_terrain_builds_its_coarse_levels_lazily() {
+    let load = |lazy: bool| {
+        let mut s = Scene::load(std::path::Path::new("golden/jacksboro-oblique.toml")).unwrap();
+        s.pyramid.lazy = lazy;
+        s.pyramid.budget = 20_000;
+        s.shading.height_range = Some([230.0, 1080.0]);
+        s.image.width = 160;
+        s.image.height = 90;
+        s.validate().unwrap();
+        s
+    };
+    let eager = walk(&load(false), 12);
+    let lazy = walk(&load(true), 12);
+    let unbuilt: Vec<usize> = lazy
+        .iter()
+        .map(|f| f.1.lazy.as_ref().unwrap().levels_unbuilt)
+        .collect();
+    println!("levels unbuilt per frame: {unbuilt:?}");
+    assert!(unbuilt[0] > 0, "{unbuilt:?}");
+    let full = unbuilt
+        .iter()
+        .position(|&u| u == 0)
+        .expect("complete in 12 frames");
+    for i in full..12 {
+        assert!(same(&eager[i].0, &lazy[i].0), "frame {i} differs");
+    }
+}
