@@ -325,7 +325,7 @@ fn first_frame(base: &Scene, opts: &Options) -> Result<FirstFrameRow> {
     std::hint::black_box(img);
     let peak_rss_bytes = peak_rss();
     let lazy = stats.lazy.clone().expect("lazy scene");
-    let levels = stats.levels_drawn + lazy.levels_unbuilt;
+    let levels = session.lod.clipmap().map_or(0, |c| c.levels().len());
     let eager_samples = session
         .pyramid()
         .levels

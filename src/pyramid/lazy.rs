@@ -71,14 +71,17 @@ impl Tiles {
     }
     /// Missing tiles that hold level samples of `[x0, x1] × [y0, y1]`
     /// (clamped to the level), row by row.
-    fn missing(&self, l: &PyramidLevel, [x0, y0, x1, y1]: [i64; 4]) -> Vec<[usize; 2]> {
+    fn missing<'a>(
+        &'a self,
+        l: &PyramidLevel,
+        [x0, y0, x1, y1]: [i64; 4],
+    ) -> impl Iterator<Item = [usize; 2]> + 'a {
         let t = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize / TILE;
         let (i0, i1) = (t(x0.min(x1), l.width), t(x1.max(x0), l.width));
         let (j0, j1) = (t(y0.min(y1), l.height), t(y1.max(y0), l.height));
         (j0..=j1)
-            .flat_map(|j| (i0..=i1).map(move |i| [i, j]))
+            .flat_map(move |j| (i0..=i1).map(move |i| [i, j]))
             .filter(|&[i, j]| !self.done[j * self.nx + i])
-            .collect()
     }
 }
 
@@ -91,6 +94,19 @@ pub(super) struct Lazy {
     tiles: Vec<Tiles>,
     /// Samples one update may build.
     budget: u64,
+}
+
+/// A level no tile of which is built yet: zeroed arrays straight from the
+/// allocator (no page touched), bounds that hold nothing.
+fn unbuilt(width: usize, height: usize) -> PyramidLevel {
+    PyramidLevel {
+        width,
+        height,
+        data: vec![0.0; width * height],
+        nodata: vec![false; width * height],
+        min: f32::INFINITY,
+        max: f32::NEG_INFINITY,
+    }
 }
 
 /// Level samples of tile (i, j).
@@ -132,45 +148,18 @@ impl Pyramid {
         let (first, source, done) = match base {
             LazyBase::Procedural(p) => {
                 p.validate()?;
-                let l = PyramidLevel {
-                    width: p.width,
-                    height: p.height,
-                    data: vec![0.0; p.width * p.height],
-                    nodata: vec![false; p.width * p.height],
-                    min: f32::INFINITY,
-                    max: f32::NEG_INFINITY,
-                };
-                (l, Some(p), false)
+                (unbuilt(p.width, p.height), Some(p), false)
             }
-            LazyBase::Heightmap(h) => {
-                let (width, height) = (h.width(), h.height());
-                let (data, nodata) = h.into_parts();
-                let l = PyramidLevel {
-                    width,
-                    height,
-                    data,
-                    nodata,
-                    min: 0.0,
-                    max: 0.0,
-                };
-                (super::with_range(l), None, true)
-            }
+            LazyBase::Heightmap(h) => (PyramidLevel::of_heightmap(h), None, true),
         };
         let mut levels = vec![first];
         while levels.len() < count.max(1) {
             let prev = levels.last().expect("level 0 exists");
-            if prev.width < 3 || prev.height < 3 {
+            if !prev.can_halve() {
                 break;
             }
             let (width, height) = downsample::halved(prev.width, prev.height);
-            levels.push(PyramidLevel {
-                width,
-                height,
-                data: vec![0.0; width * height],
-                nodata: vec![false; width * height],
-                min: f32::INFINITY,
-                max: f32::NEG_INFINITY,
-            });
+            levels.push(unbuilt(width, height));
         }
         let tiles: Vec<Tiles> = levels
             .iter()
@@ -253,7 +242,7 @@ impl Pyramid {
         let Some(z) = &self.lazy else { return true };
         let r = (z.kernel.len() / 2) as i64;
         let mut plan = vec![Vec::new(); l + 1];
-        plan[l] = z.tiles[l].missing(&self.levels[l], rect);
+        plan[l] = z.tiles[l].missing(&self.levels[l], rect).collect();
         if plan[l].is_empty() {
             return true;
         }
@@ -286,7 +275,8 @@ impl Pyramid {
                     let (tiles, level) = (&z.tiles[k - 1], &self.levels[k - 1]);
                     tiles
                         .missing(level, inputs(&self.levels[k], t, r))
-                        .is_empty()
+                        .next()
+                        .is_none()
                 };
                 if ready {
                     *budget = budget.saturating_sub(tile_block(&self.levels[k], t).len() as u64);
@@ -296,7 +286,7 @@ impl Pyramid {
             self.build_tiles(k, &batch);
         }
         let z = self.lazy.as_ref().expect("lazy pyramid");
-        z.tiles[l].missing(&self.levels[l], rect).is_empty()
+        z.tiles[l].missing(&self.levels[l], rect).next().is_none()
     }
 
     /// Computes tiles `ts` of level `l` (their inputs exist) in parallel,
