@@ -24,7 +24,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&format!("update_walk_n255_{layout:?}"), |b| {
             b.iter(|| {
                 t += 3.0;
-                cm.update([600.0 + t % 800.0, 600.0 + t % 800.0])
+                cm.update([600.0 + t % 800.0, 600.0 + t % 800.0]).texels_total
             })
         });
         c.bench_function(&format!("meshes_n255_{layout:?}"), |b| {
@@ -57,7 +57,7 @@ fn bench_n255_l10(c: &mut Criterion) {
     c.bench_function("update_n255_l10_full_rebuild", |b| {
         b.iter(|| {
             cm.invalidate();
-            cm.update(centre)
+            cm.update(centre).texels_total
         })
     });
     for (name, d) in [("east", [1.0, 0.0]), ("south", [0.0, 1.0])] {
@@ -69,6 +69,7 @@ fn bench_n255_l10(c: &mut Criterion) {
                 // rebuild, as in any long walk over a finite map.
                 f = (f + 1.0) % 4096.0;
                 cm.update([centre[0] + f * d[0], centre[1] + f * d[1]])
+                    .texels_total
             })
         });
     }

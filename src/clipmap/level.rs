@@ -1,5 +1,6 @@
 //! One clipmap level: its toroidal height window and this frame's regions.
 
+use super::columns::ColumnCache;
 use super::morph::MorphParams;
 use super::region::LevelRegions;
 use super::toroid::Toroid;
@@ -15,6 +16,8 @@ pub struct ClipLevel {
     pub regions: LevelRegions,
     /// Morph constants for the current viewer.
     pub morph: MorphParams,
+    /// Source columns for east/west steps.
+    pub columns: ColumnCache,
 }
 
 impl ClipLevel {
@@ -31,6 +34,7 @@ impl ClipLevel {
                 boundary: [0; 4],
                 stitched: [false; 4],
             },
+            columns: ColumnCache::default(),
         }
     }
     /// Grid spacing in base texels.

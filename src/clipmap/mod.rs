@@ -2,6 +2,7 @@
 //! held in toroidal arrays, updated in L-shaped strips, meshed in one of two
 //! index layouts, geomorphed in transition bands and culled to the frustum.
 
+pub mod columns;
 pub mod cull;
 pub mod footprint;
 pub mod level;
@@ -18,7 +19,7 @@ use level::ClipLevel;
 use region::{Rect, RegionParams};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
-use toroid::TexRect;
+use toroid::TexRects;
 
 /// Index layout used to mesh each level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -66,7 +67,7 @@ impl Default for ClipmapConfig {
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct UpdateStats {
     pub texels_per_level: Vec<u64>,
-    pub rects_per_level: Vec<Vec<TexRect>>,
+    pub rects_per_level: Vec<TexRects>,
     pub texels_total: u64,
     /// Levels left stale (and inactive) because the budget ran out.
     pub levels_deferred: usize,
@@ -121,6 +122,10 @@ pub struct Clipmap {
     levels: Vec<ClipLevel>,
     footprints: Arc<Footprints>,
     viewer: [f64; 2],
+    /// The last update's statistics and this frame's regions, kept so an
+    /// update reuses their memory instead of allocating every frame.
+    stats: UpdateStats,
+    regions: Vec<region::LevelRegions>,
 }
 
 impl Clipmap {
@@ -170,7 +175,7 @@ impl Clipmap {
             map,
         };
         let regions = region::compute(&params, [0.0, 0.0]);
-        let levels = (0..count)
+        let levels: Vec<ClipLevel> = (0..count)
             .map(|l| {
                 let mut lv = ClipLevel::new(l, cfg.n as usize, regions[l]);
                 lv.morph.width = w;
@@ -185,6 +190,8 @@ impl Clipmap {
             params,
             levels,
             viewer: [f64::NAN; 2],
+            stats: UpdateStats::default(),
+            regions,
         })
     }
 
@@ -227,12 +234,17 @@ impl Clipmap {
     /// Marks every level stale, so the next update rebuilds all texels (after
     /// the terrain under the clipmap changed, or to time a full rebuild).
     pub fn invalidate(&mut self) {
-        self.levels.iter_mut().for_each(|l| l.heights.invalidate());
+        self.levels.iter_mut().for_each(|l| {
+            l.heights.invalidate();
+            l.columns.clear();
+        });
     }
 
     /// Moves every level to the viewer at base-grid position `viewer`,
-    /// rewriting only newly exposed texels, coarse levels first.
-    pub fn update(&mut self, viewer: [f64; 2]) -> UpdateStats {
+    /// rewriting only newly exposed texels, coarse levels first. Allocates
+    /// nothing once the first update has sized its lists (with an eager
+    /// pyramid), so a one-texel step costs about the texels it writes.
+    pub fn update(&mut self, viewer: [f64; 2]) -> &UpdateStats {
         let count = self.levels.len();
         let viewer = if viewer[0].is_finite() && viewer[1].is_finite() {
             viewer
@@ -240,13 +252,19 @@ impl Clipmap {
             [0.0, 0.0]
         };
         self.viewer = viewer;
-        let mut regions = region::compute(&self.params, viewer);
-        let mut stats = UpdateStats {
-            texels_per_level: vec![0; count],
-            rects_per_level: vec![vec![]; count],
-            ..Default::default()
-        };
+        let mut regions = std::mem::take(&mut self.regions);
+        region::compute_into(&self.params, viewer, &mut regions);
+        let mut stats = std::mem::take(&mut self.stats);
+        stats.texels_per_level.clear();
+        stats.texels_per_level.resize(count, 0);
+        stats.rects_per_level.clear();
+        stats.rects_per_level.resize(count, TexRects::default());
+        stats.texels_total = 0;
+        stats.levels_deferred = 0;
+        stats.levels_unbuilt = 0;
+        stats.pyramid_samples = 0;
         let ready = self.build_pyramid(&regions, &mut stats);
+        let complete = self.pyramid.is_complete();
         if ready < count {
             // The ready levels are drawn as a clipmap of their own: the
             // coarsest of them is cropped only by the map.
@@ -265,6 +283,9 @@ impl Clipmap {
             let lv = &mut self.levels[l];
             let origin = regions[l].origin;
             let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
+            if rects.is_empty() {
+                continue;
+            }
             let needed: u64 = rects.iter().map(|r| r.area() as u64).sum();
             if needed > budget && l + 1 < ready {
                 deferred_from = Some(l);
@@ -272,8 +293,23 @@ impl Clipmap {
             }
             budget = budget.saturating_sub(needed);
             let src = &self.pyramid.levels[l];
-            lv.heights
-                .move_with(origin, &rects, |x, y| src.get_clamped(x, y));
+            let tall = |r: &&toroid::TexRect| {
+                r.x1 - r.x0 <= toroid::NARROW && r.y1 - r.y0 > toroid::NARROW
+            };
+            // Only a finished pyramid: a lazy one's columns beyond the
+            // window may not be built yet.
+            match rects.iter().find(tall) {
+                Some(r) if complete => {
+                    let x = toroid::Toroid::<f32>::world_of(r.x0, origin[0], self.n as usize);
+                    lv.columns.ensure(src, x, origin[1], origin[1] + self.n);
+                }
+                _ => lv.columns.clear(),
+            }
+            let level = columns::LevelSource {
+                level: src,
+                cache: &lv.columns,
+            };
+            lv.heights.move_from(origin, &rects, &level);
             stats.texels_per_level[l] = needed;
             stats.texels_total += needed;
             stats.rects_per_level[l] = rects;
@@ -290,15 +326,18 @@ impl Clipmap {
                 && l + 1 < count
                 && regions.get(l + 1).is_some_and(|r| r.active.is_some());
             let lv = &mut self.levels[l];
-            lv.regions = regions[l];
+            // Read from the local copy: reading back the fields just stored
+            // stalls on store forwarding.
+            let r = regions[l];
+            lv.regions = r;
             let g = (1i64 << l) as f64;
-            let o = lv.regions.origin;
+            let o = r.origin;
             lv.morph.viewer = [
                 (clamped[0] / g - o[0] as f64) as f32,
                 (clamped[1] / g - o[1] as f64) as f32,
             ];
             lv.morph.enabled = morph_on;
-            if let Some(a) = lv.regions.active {
+            if let Some(a) = r.active {
                 let b = footprint::to_level(&a, l);
                 lv.morph.boundary = [
                     (b[0] - o[0]) as i32,
@@ -306,10 +345,12 @@ impl Clipmap {
                     (b[2] - o[0]) as i32,
                     (b[3] - o[1]) as i32,
                 ];
-                lv.morph.stitched = lv.regions.map_sides.map(|s| !s);
+                lv.morph.stitched = r.map_sides.map(|s| !s);
             }
         }
-        stats
+        self.regions = regions;
+        self.stats = stats;
+        &self.stats
     }
 
     /// For a lazy pyramid, builds the tiles under each level's window (one

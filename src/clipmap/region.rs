@@ -128,23 +128,21 @@ pub fn block_size(n: i64) -> i64 {
 /// m coarse cells inside the coarser one (the four trim positions of GPU
 /// Gems 2), every centre stays within one level texel of the viewer, and the
 /// boundaries lie on even vertices of the next coarser level.
-pub fn window_origins(n: i64, levels: usize, v: [f64; 2]) -> Vec<[i64; 2]> {
+fn first_origin(n: i64, v: [f64; 2]) -> [i64; 2] {
     let h = ((n - 1) / 2) as f64;
-    let m = block_size(n);
-    let mut o = [0usize, 1].map(|a| 2 * ((v[a] - h) / 2.0 + 0.5).floor() as i64);
-    let mut out = Vec::with_capacity(levels);
-    for _ in 0..levels {
-        out.push(o);
-        o = o.map(|c| {
-            let f = c / 2;
-            if (f - m).rem_euclid(2) == 0 {
-                f - m
-            } else {
-                f - m + 1
-            }
-        });
-    }
-    out
+    [0usize, 1].map(|a| 2 * ((v[a] - h) / 2.0 + 0.5).floor() as i64)
+}
+
+/// The next coarser level's origin, see [`first_origin`].
+fn coarser_origin(o: [i64; 2], m: i64) -> [i64; 2] {
+    o.map(|c| {
+        let f = c / 2;
+        if (f - m).rem_euclid(2) == 0 {
+            f - m
+        } else {
+            f - m + 1
+        }
+    })
 }
 
 /// The viewer position the windows centre on: clamped into the usable map,
@@ -166,26 +164,32 @@ pub fn clamp_viewer(map: Option<&Rect>, v: [f64; 2]) -> [f64; 2] {
 /// active region eroded by 2 coarse texels (not on map sides). A level whose
 /// active region has no cell, and every level finer than it, is inactive.
 pub fn compute(p: &RegionParams, viewer: [f64; 2]) -> Vec<LevelRegions> {
+    let mut out = Vec::with_capacity(p.levels);
+    compute_into(p, viewer, &mut out);
+    out
+}
+
+/// [`compute`] into a list kept from frame to frame, so an update
+/// allocates nothing.
+pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegions>) {
     let v = clamp_viewer(p.map.as_ref(), viewer);
-    let origins = window_origins(p.n, p.levels, v);
-    let mut out: Vec<LevelRegions> = origins
-        .iter()
-        .enumerate()
-        .map(|(l, o)| {
-            let g = 1i64 << l;
-            LevelRegions {
-                origin: *o,
-                clip: Rect::new(
-                    o[0] * g,
-                    o[1] * g,
-                    (o[0] + p.n - 1) * g,
-                    (o[1] + p.n - 1) * g,
-                ),
-                active: None,
-                map_sides: [false; 4],
-            }
-        })
-        .collect();
+    out.clear();
+    let mut o = first_origin(p.n, v);
+    for l in 0..p.levels {
+        let g = 1i64 << l;
+        out.push(LevelRegions {
+            origin: o,
+            clip: Rect::new(
+                o[0] * g,
+                o[1] * g,
+                (o[0] + p.n - 1) * g,
+                (o[1] + p.n - 1) * g,
+            ),
+            active: None,
+            map_sides: [false; 4],
+        });
+        o = coarser_origin(o, block_size(p.n));
+    }
     let mut coarser: Option<Rect> = None;
     for l in (0..p.levels).rev() {
         let clip = out[l].clip;
@@ -202,7 +206,6 @@ pub fn compute(p: &RegionParams, viewer: [f64; 2]) -> Vec<LevelRegions> {
         out[l].map_sides = p.map.map(|m| a.sides_on(&m)).unwrap_or([false; 4]);
         coarser = Some(a);
     }
-    out
 }
 
 /// Render region of level l: its active region minus the finer active region.

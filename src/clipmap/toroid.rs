@@ -10,7 +10,7 @@ use serde::Serialize;
 const PARALLEL_TEXELS: usize = 16 * 1024;
 
 /// A half-open rectangle `[x0, x1) × [y0, y1)` in toroid (texel) space.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TexRect {
     pub x0: usize,
     pub y0: usize,
@@ -27,6 +27,55 @@ impl TexRect {
     }
     fn contains(&self, x: usize, y: usize) -> bool {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
+    }
+}
+
+/// The at most 4 rectangles of one update, held inline: an update runs
+/// every frame for every level, and its cost should be the texels it
+/// writes, not allocations.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TexRects {
+    rects: [TexRect; 4],
+    len: usize,
+}
+
+impl TexRects {
+    /// A single rectangle (a whole window, for a first fill).
+    pub fn one(r: TexRect) -> Self {
+        std::iter::once(r).collect()
+    }
+    fn push(&mut self, r: TexRect) {
+        self.rects[self.len] = r;
+        self.len += 1;
+    }
+}
+
+impl std::ops::Deref for TexRects {
+    type Target = [TexRect];
+    fn deref(&self) -> &[TexRect] {
+        &self.rects[..self.len]
+    }
+}
+
+impl<'a> IntoIterator for &'a TexRects {
+    type Item = &'a TexRect;
+    type IntoIter = std::slice::Iter<'a, TexRect>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.iter()
+    }
+}
+
+impl FromIterator<TexRect> for TexRects {
+    fn from_iter<I: IntoIterator<Item = TexRect>>(iter: I) -> Self {
+        let mut out = TexRects::default();
+        iter.into_iter().for_each(|r| out.push(r));
+        out
+    }
+}
+
+impl Serialize for TexRects {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter())
     }
 }
 
@@ -64,20 +113,19 @@ impl Cyclic {
 /// The toroid-space rectangles to rewrite when a window of size `s` moves
 /// from `old` to `new` (world origins). A first fill, or a jump of a full
 /// window or more, rewrites everything as one rectangle.
-pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> Vec<TexRect> {
+pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> TexRects {
     let full = || {
-        vec![TexRect {
+        TexRects::one(TexRect {
             x0: 0,
             y0: 0,
             x1: s,
             y1: s,
-        }]
+        })
     };
     let Some(old) = old else { return full() };
     let d = [new[0] - old[0], new[1] - old[1]];
     if d == [0, 0] {
-        // A level that did not move: nothing to write, nothing allocated.
-        return Vec::new();
+        return TexRects::default();
     }
     if d[0].unsigned_abs() as usize >= s || d[1].unsigned_abs() as usize >= s {
         return full();
@@ -163,39 +211,35 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
 
     /// Moves the window to `new` and rewrites exactly the exposed texels with
     /// `fill(world_x, world_y)`. Returns the rectangles rewritten.
-    pub fn move_to(&mut self, new: [i64; 2], fill: impl Fn(i64, i64) -> T + Sync) -> Vec<TexRect> {
+    pub fn move_to(&mut self, new: [i64; 2], fill: impl Fn(i64, i64) -> T + Sync) -> TexRects {
         let rects = update_rects(self.origin, new, self.size);
-        self.move_with(new, &rects, fill);
+        self.move_from(new, &rects, &Cells(fill));
         rects
     }
 
     /// [`Toroid::move_to`] with the rectangles already computed by
-    /// [`update_rects`] for this move.
+    /// [`update_rects`] for this move, and a [`Source`] that fills a run at
+    /// a time.
     ///
     /// Each rectangle is cut where the window's world coordinates wrap, so
     /// every piece maps to consecutive world cells and needs one modulo, not
-    /// one per texel. Small updates (a one-texel step writes a row and a
-    /// column) run on the calling thread, rectangle by rectangle; large ones
-    /// in parallel over the rows they touch.
-    pub fn move_with(
-        &mut self,
-        new: [i64; 2],
-        rects: &[TexRect],
-        fill: impl Fn(i64, i64) -> T + Sync,
-    ) {
+    /// one per texel. Rectangles at most [`NARROW`] texels wide (an east or
+    /// west step) are written a column at a time, the others a row at a
+    /// time. Small updates (a one-texel step writes a row and a column) run
+    /// on the calling thread, rectangle by rectangle; large ones in parallel
+    /// over the rows they touch.
+    pub fn move_from(&mut self, new: [i64; 2], rects: &[TexRect], src: &impl Source<T>) {
         let s = self.size;
         let wrap = new.map(|o| o.rem_euclid(s as i64) as usize);
         // Per rectangle: its column pieces as (x0, x1, world x of x0).
-        let pieces: Vec<[(usize, usize, i64); 2]> = rects
-            .iter()
-            .map(|r| {
-                consecutive(r.x0, r.x1, wrap[0]).map(|(a, b)| (a, b, Self::world_of(a, new[0], s)))
-            })
-            .collect();
+        let mut pieces = [[(0usize, 0usize, 0i64); 2]; 4];
+        for (p, r) in pieces.iter_mut().zip(rects) {
+            *p = consecutive(r.x0, r.x1, wrap[0]).map(|(a, b)| (a, b, Self::world_of(a, new[0], s)));
+        }
         let write = |row: &mut [T], p: &[(usize, usize, i64); 2], wy: i64| {
             for &(a, b, wx) in p {
-                for (i, v) in row[a..b].iter_mut().enumerate() {
-                    *v = fill(wx + i as i64, wy);
+                if a < b {
+                    src.row(wx, wy, &mut row[a..b]);
                 }
             }
         };
@@ -204,8 +248,20 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
             for (r, p) in rects.iter().zip(&pieces) {
                 for (ya, yb) in consecutive(r.y0, r.y1, wrap[1]) {
                     let wy = Self::world_of(ya, new[1], s);
-                    for ty in ya..yb {
-                        write(&mut self.data[ty * s..ty * s + s], p, wy + (ty - ya) as i64);
+                    if ya == yb {
+                        continue;
+                    }
+                    if r.x1 - r.x0 <= NARROW {
+                        for &(a, b, wx) in p {
+                            for x in a..b {
+                                let column = self.data[ya * s + x..].iter_mut().step_by(s);
+                                src.column(wx + (x - a) as i64, wy, column.take(yb - ya));
+                            }
+                        }
+                    } else {
+                        for ty in ya..yb {
+                            write(&mut self.data[ty * s..ty * s + s], p, wy + (ty - ya) as i64);
+                        }
                     }
                 }
             }
@@ -225,6 +281,37 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
             });
         }
         self.origin = Some(new);
+    }
+}
+
+/// Rectangles at most this wide are written a column at a time.
+pub const NARROW: usize = 3;
+
+/// A toroid column being rewritten: its texels, n apart, top to bottom.
+pub type Column<'a, T> = std::iter::Take<std::iter::StepBy<std::slice::IterMut<'a, T>>>;
+
+/// Where a toroid's new texels come from.
+pub trait Source<T>: Sync {
+    /// Writes world cells `(wx + i, wy)` into `run[i]`.
+    fn row(&self, wx: i64, wy: i64, run: &mut [T]);
+    /// Writes world cells `(wx, wy + i)` into the i-th texel of `column`.
+    /// By default a row of one texel at a time; a source laid out in rows
+    /// does better from a copy of its columns (see `clipmap::columns`).
+    fn column(&self, wx: i64, wy: i64, column: Column<'_, T>) {
+        for (i, v) in column.enumerate() {
+            self.row(wx, wy + i as i64, std::slice::from_mut(v));
+        }
+    }
+}
+
+/// A source that computes each cell: `fill(world_x, world_y)`.
+struct Cells<F>(F);
+
+impl<T, F: Fn(i64, i64) -> T + Sync> Source<T> for Cells<F> {
+    fn row(&self, wx: i64, wy: i64, run: &mut [T]) {
+        for (i, v) in run.iter_mut().enumerate() {
+            *v = (self.0)(wx + i as i64, wy);
+        }
     }
 }
 

@@ -2,7 +2,7 @@
 //! per-vertex normals), the lightmap and normal-map atlases, and readback.
 
 use super::Gpu;
-use crate::clipmap::toroid::{TexRect, Toroid};
+use crate::clipmap::toroid::{TexRect, TexRects, Toroid};
 use crate::clipmap::{Clipmap, UpdateStats};
 use crate::error::{Error, Result};
 use crate::render::Image;
@@ -115,9 +115,9 @@ impl ToroidTextures {
         };
         self.texels_written = 0;
         for (l, lv) in cm.levels().iter().enumerate() {
-            let rects: Vec<TexRect> = match update {
-                Some(u) if !fresh => u.rects_per_level.get(l).cloned().unwrap_or_default(),
-                _ => vec![all],
+            let rects: TexRects = match update {
+                Some(u) if !fresh => u.rects_per_level.get(l).copied().unwrap_or_default(),
+                _ => TexRects::one(all),
             };
             let heights = lv.heights.texels();
             for r in &rects {
@@ -135,7 +135,7 @@ impl ToroidTextures {
                 self.texels_written += r.area() as u64;
             }
             if self.has_gradients {
-                let grads = if full_gradients { vec![all] } else { rects };
+                let grads = if full_gradients { TexRects::one(all) } else { rects };
                 for r in &grads {
                     self.write_gradients(gpu, cm, world, l, r);
                 }

@@ -36,7 +36,9 @@ impl Lod for ClipmapLod {
     }
 
     fn update(&mut self, view: &View) -> LodUpdate {
-        self.update = self.cm.update(view.world.to_grid(view.camera.eye));
+        // clone_from keeps this frame's lists in last frame's memory.
+        let stats = self.cm.update(view.world.to_grid(view.camera.eye));
+        self.update.clone_from(stats);
         LodUpdate {
             texels_updated: self.update.texels_total,
             changes: self

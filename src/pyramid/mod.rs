@@ -139,6 +139,32 @@ impl PyramidLevel {
         let yc = y.clamp(0, self.height as i64 - 1) as usize;
         self.data[yc * self.width + xc]
     }
+
+    /// Samples `(x0 + i, y)` into `out[i]`, coordinates clamped like
+    /// [`PyramidLevel::get_clamped`]: one row lookup per run, and a copy
+    /// where the run lies inside the level (the usual case for a clipmap
+    /// update's rows and columns).
+    #[inline]
+    pub fn copy_clamped(&self, x0: i64, y: i64, out: &mut [f32]) {
+        let w = self.width as i64;
+        let yc = y.clamp(0, self.height as i64 - 1) as usize;
+        let row = &self.data[yc * self.width..(yc + 1) * self.width];
+        let x1 = x0 + out.len() as i64;
+        if x0 >= 0 && x1 <= w {
+            let src = &row[x0 as usize..x1 as usize];
+            // A column's runs are a texel or two wide: a call to memcpy
+            // would cost more than the copy.
+            if out.len() <= 4 {
+                out.iter_mut().zip(src).for_each(|(o, s)| *o = *s);
+            } else {
+                out.copy_from_slice(src);
+            }
+        } else {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = row[(x0 + i as i64).clamp(0, w - 1) as usize];
+            }
+        }
+    }
 }
 
 /// All levels, finest first.
