@@ -24,7 +24,8 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&format!("update_walk_n255_{layout:?}"), |b| {
             b.iter(|| {
                 t += 3.0;
-                cm.update([600.0 + t % 800.0, 600.0 + t % 800.0]).texels_total
+                cm.update([600.0 + t % 800.0, 600.0 + t % 800.0])
+                    .texels_total
             })
         });
         c.bench_function(&format!("meshes_n255_{layout:?}"), |b| {

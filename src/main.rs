@@ -649,8 +649,8 @@ fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
     }
     let u = &r.update;
     println!(
-        "full update n={} L={} on a {}-wide map: {:.3} ms ({} texels)",
-        u.n, u.levels, u.size, u.full_ms, u.full_texels
+        "full update n={} L={} on a {}-wide map: {:.3} ms after a jump, {:.3} ms for the same window again ({} texels)",
+        u.n, u.levels, u.size, u.full_ms, u.full_same_window_ms, u.full_texels
     );
     for w in &u.walks {
         println!(

@@ -87,8 +87,14 @@ pub struct UpdateRow {
     pub size: usize,
     pub n: i64,
     pub levels: usize,
-    /// Median of full rebuilds (every texel of every level written).
+    /// Median of full rebuilds (every texel of every level written) after
+    /// jumps to places not read before, which is when a rebuild happens
+    /// and what the walks read too: the incremental overhead is taken
+    /// against this.
     pub full_ms: f64,
+    /// Median of rebuilds of one window again and again, its source
+    /// already in cache: the best a rebuild can do.
+    pub full_same_window_ms: f64,
     pub full_texels: u64,
     /// Walks east (each level writes columns) and south (rows).
     pub walks: Vec<Walk>,
@@ -430,37 +436,56 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         ..Default::default()
     };
     let centre = [size as f64 / 2.0, rows as f64 / 2.0];
-    // Full rebuilds: every texel of every level rewritten, in memory that
-    // is already in use (a fresh clipmap would also time page faults).
-    let mut cm = Clipmap::new(pyramid, cfg)?;
-    cm.update(centre);
-    let mut full = Vec::new();
+    // Rebuilds run on a second clipmap, interleaved with the walks' frames
+    // (8 chunks per walk), so a slow spell of this machine hits both
+    // sides of the ratio. Each rewrites every texel of every level, in
+    // memory already in use (a fresh clipmap would also time page faults),
+    // after a jump to one of 16 places across the map, an eighth of its
+    // height from the top or bottom, clear of the walks from the centre.
+    let mut walker = Clipmap::new(pyramid, cfg)?;
+    walker.update(centre);
+    let mut jumper = walker.clone();
     let mut full_texels = 0;
-    for _ in 0..15 {
-        cm.invalidate();
+    let mut rebuild = |at: [f64; 2]| {
+        jumper.invalidate();
         let t = Instant::now();
-        let s = cm.update(centre);
-        full.push(t.elapsed().as_secs_f64() * 1e3);
-        full_texels = s.texels_total;
-    }
-    let full_ms = median(&full);
+        full_texels = jumper.update(at).texels_total;
+        t.elapsed().as_secs_f64() * 1e3
+    };
+    let jump = |k: usize| {
+        let y = if k % 2 == 0 { 0.125 } else { 0.875 };
+        [size as f64 * (k as f64 + 0.5) / 16.0, rows as f64 * y]
+    };
     // Four cycles of the coarsest level, so one preempted frame does not
     // decide the mean.
     let frames = 4usize << (opts.update_levels - 1);
-    let walks = [("east", [1.0, 0.0]), ("south", [0.0, 1.0])]
+    let chunks = frames.min(8);
+    let mut jumps = Vec::new();
+    let mut walked = Vec::new();
+    for (w, (direction, d)) in [("east", [1.0, 0.0]), ("south", [0.0, 1.0])]
         .into_iter()
-        .map(|(direction, d)| {
-            cm.update(centre);
-            let mut texels = 0u64;
+        .enumerate()
+    {
+        walker.update(centre);
+        let (mut ms, mut texels) = (0.0, 0u64);
+        for c in 0..chunks {
             let t = Instant::now();
-            for f in 1..=frames {
+            for f in c * frames / chunks + 1..=(c + 1) * frames / chunks {
                 let f = f as f64;
-                texels += cm
+                texels += walker
                     .update([centre[0] + f * d[0], centre[1] + f * d[1]])
                     .texels_total;
             }
-            let incremental_ms = t.elapsed().as_secs_f64() * 1e3 / frames as f64;
-            let incremental_texels = texels as f64 / frames as f64;
+            ms += t.elapsed().as_secs_f64() * 1e3;
+            jumps.push(rebuild(jump(w * chunks + c)));
+        }
+        walked.push((direction, ms / frames as f64, texels as f64 / frames as f64));
+    }
+    let same: Vec<f64> = (0..15).map(|_| rebuild(centre)).collect();
+    let (full_ms, full_same_window_ms) = (median(&jumps), median(&same));
+    let walks = walked
+        .into_iter()
+        .map(|(direction, incremental_ms, incremental_texels)| {
             let time_ratio = incremental_ms / full_ms;
             let texel_ratio = incremental_texels / full_texels as f64;
             Walk {
@@ -479,6 +504,7 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         n: opts.update_n,
         levels: opts.update_levels,
         full_ms,
+        full_same_window_ms,
         full_texels,
         walks,
     })

@@ -83,6 +83,7 @@ fn scaling_report_figures() {
     );
     assert!(b1 > 3 * b0, "brute force: {b0} -> {b1}");
     assert_eq!(r.update.full_texels, 4 * 31 * 31);
+    assert!(r.update.full_ms > 0.0 && r.update.full_same_window_ms > 0.0);
     assert_eq!(r.update.walks.len(), 2);
     for w in &r.update.walks {
         assert_eq!(w.frames, 32);

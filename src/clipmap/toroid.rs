@@ -234,7 +234,8 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
         // Per rectangle: its column pieces as (x0, x1, world x of x0).
         let mut pieces = [[(0usize, 0usize, 0i64); 2]; 4];
         for (p, r) in pieces.iter_mut().zip(rects) {
-            *p = consecutive(r.x0, r.x1, wrap[0]).map(|(a, b)| (a, b, Self::world_of(a, new[0], s)));
+            *p =
+                consecutive(r.x0, r.x1, wrap[0]).map(|(a, b)| (a, b, Self::world_of(a, new[0], s)));
         }
         let write = |row: &mut [T], p: &[(usize, usize, i64); 2], wy: i64| {
             for &(a, b, wx) in p {

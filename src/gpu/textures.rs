@@ -135,7 +135,11 @@ impl ToroidTextures {
                 self.texels_written += r.area() as u64;
             }
             if self.has_gradients {
-                let grads = if full_gradients { TexRects::one(all) } else { rects };
+                let grads = if full_gradients {
+                    TexRects::one(all)
+                } else {
+                    rects
+                };
                 for r in &grads {
                     self.write_gradients(gpu, cm, world, l, r);
                 }
