@@ -467,14 +467,16 @@ fn check_gpu_cmd(
         let res = parity::check(&mut r, scene, name, frames, step, out, exact)?;
         if !json {
             println!(
-                "{:<6} {:<22} {:>3} frame(s)  colour {} px  depth {} px  max channel {}  max depth {} ulp",
+                "{:<6} {:<22} {:>3} frame(s)  colour {} px  depth {} px  max channel {}  max depth {} ulp  shifted {} px  unmatched {} px",
                 if res.pass { "ok" } else { "FAIL" },
                 res.scene,
                 res.frames,
                 res.colour_px_differ,
                 res.depth_px_differ,
                 res.max_channel_diff,
-                res.max_depth_ulp
+                res.max_depth_ulp,
+                res.shifted_px,
+                res.unmatched_px
             );
         }
         results.push(res);

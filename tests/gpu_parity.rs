@@ -72,28 +72,137 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
     }
 }
 
-#[test]
-fn tolerance_mode_accepts_one_step_and_rejects_more() {
-    use terraclip::render::Image;
-    let img = |v: u8| Image {
+fn flat(v: u8) -> terraclip::render::Image {
+    terraclip::render::Image {
         width: 100,
         height: 100,
         rgba: vec![v; 40_000],
         depth: vec![0.5; 10_000],
-    };
-    let a = img(10);
-    let mut b = img(10);
+    }
+}
+
+fn paint(img: &mut terraclip::render::Image, x: usize, y: usize, v: u8, z: f32) {
+    let i = y * img.width as usize + x;
+    img.rgba[4 * i..4 * i + 3].fill(v);
+    img.depth[i] = z;
+}
+
+#[test]
+fn tolerance_mode_accepts_one_step_and_rejects_more() {
+    let a = flat(10);
+    let mut b = flat(10);
     b.rgba[0] = 11;
     let d = parity::Difference::of(&a, &b);
     assert_eq!((d.colour_px_differ, d.max_channel_diff), (1, 1));
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 0));
     assert!(d.passes(false, 10_000) && !d.passes(true, 10_000));
+    // Three steps: unmatched, and over the 0.1 % budget at 11 pixels.
     b.rgba[4] = 13;
-    assert!(!parity::Difference::of(&a, &b).passes(false, 10_000));
-    let mut c = img(10);
-    c.depth[3] = f32::from_bits(0.5f32.to_bits() + 5);
-    let d = parity::Difference::of(&a, &c);
-    assert_eq!((d.depth_px_differ, d.max_depth_ulp), (1, 5));
+    let d = parity::Difference::of(&a, &b);
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 1));
+    for i in 2..12 {
+        b.rgba[4 * i] = 13;
+    }
+    let d = parity::Difference::of(&a, &b);
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 11));
     assert!(!d.passes(false, 10_000));
+    let mut c = flat(10);
+    c.depth[3] = f32::from_bits(0.5f32.to_bits() + parity::TOLERANCE_DEPTH_ULP);
+    let d = parity::Difference::of(&a, &c);
+    assert_eq!(
+        (d.depth_px_differ, d.max_depth_ulp),
+        (1, parity::TOLERANCE_DEPTH_ULP)
+    );
+    assert!(d.passes(false, 10_000));
+    c.depth[3] = f32::from_bits(0.5f32.to_bits() + parity::TOLERANCE_DEPTH_ULP + 1);
+    assert_eq!(parity::Difference::of(&a, &c).unmatched_px, 1);
+}
+
+/// An edge one pixel over is a shift; a crack, a lost wire or a wrong depth
+/// under an unchanged colour matches nowhere; a whole image moved by a pixel
+/// is more shift than a frame may have.
+#[test]
+fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
+    // Terrain (10) over sky (200) with its silhouette at row 50, columns
+    // 20..40 one row lower on the GPU.
+    let mut cpu = flat(10);
+    let mut gpu = flat(10);
+    for y in 0..50 {
+        for x in 0..100 {
+            paint(&mut cpu, x, y, 200, 1.0);
+            paint(&mut gpu, x, y, 200, 1.0);
+        }
+    }
+    for x in 20..40 {
+        paint(&mut gpu, x, 50, 200, 1.0);
+    }
+    let d = parity::Difference::of(&cpu, &gpu);
+    assert_eq!(
+        (d.shifted_px, d.unmatched_px, d.max_channel_diff),
+        (20, 0, 190)
+    );
+    assert!(d.passes(false, 10_000));
+
+    // A crack showing the sky inside the terrain: one pixel is counted but
+    // within the 0.1 % a tie may flip; a crack along an 11-pixel edge is not.
+    let mut crack = cpu.clone();
+    paint(&mut crack, 60, 80, 200, 1.0);
+    let d = parity::Difference::of(&cpu, &crack);
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 1));
+    assert!(d.passes(false, 10_000));
+    for x in 61..71 {
+        paint(&mut crack, x, 80, 200, 1.0);
+    }
+    let d = parity::Difference::of(&cpu, &crack);
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 11));
+    assert!(!d.passes(false, 10_000));
+
+    // A wire column the GPU lost: every one of its pixels is unmatched.
+    let mut wired = cpu.clone();
+    for y in 60..90 {
+        paint(&mut wired, 70, y, 255, 0.5);
+    }
+    let d = parity::Difference::of(&wired, &cpu);
+    assert_eq!(d.unmatched_px, 30);
+    assert!(!d.passes(false, 10_000));
+
+    // The same colour at another depth (a fogged surface behind another).
+    let mut deeper = cpu.clone();
+    paint(&mut deeper, 30, 70, 10, 0.75);
+    assert_eq!(parity::Difference::of(&cpu, &deeper).unmatched_px, 1);
+
+    // A wall whose depth steps 0.004 per pixel: a GPU depth 1/32 of a step
+    // off is the same pixel; half a step off everywhere is a shift of far
+    // more than 1 % of the frame.
+    let wall = |off: f32| {
+        let mut img = flat(10);
+        for y in 0..100 {
+            for x in 0..100 {
+                paint(&mut img, x, y, 10, 0.2 + 0.004 * (x as f32 + off));
+            }
+        }
+        img
+    };
+    let d = parity::Difference::of(&wall(0.0), &wall(1.0 / 32.0));
+    assert!(d.max_depth_ulp > parity::TOLERANCE_DEPTH_ULP);
+    assert_eq!((d.shifted_px, d.unmatched_px), (0, 0));
+    let d = parity::Difference::of(&wall(0.0), &wall(0.5));
+    assert!(d.shifted_px > 9_000 && !d.passes(false, 10_000), "{d:?}");
+
+    // A ramp moved by a pixel everywhere: every pixel but those of the two
+    // border columns has a matching neighbour, and far more than 1 % shifted.
+    let ramp = |off: usize| {
+        let mut img = flat(0);
+        for y in 0..100 {
+            for x in 0..100 {
+                paint(&mut img, x, y, (2 * (x + off) + y / 2) as u8, 0.5);
+            }
+        }
+        img
+    };
+    let d = parity::Difference::of(&ramp(0), &ramp(1));
+    assert!(d.unmatched_px <= 200, "{d:?}");
+    assert!(d.shifted_px > 9_000 && !d.passes(false, 10_000), "{d:?}");
 }
 
 #[test]
