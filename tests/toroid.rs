@@ -129,10 +129,12 @@ proptest! {
 
 /// Small steps: mostly one texel east or west (a column each, read through
 /// the level's column cache), with some vertical drift past the cache's
-/// margin and some steps off the map, where the cached blocks clamp.
+/// margin, some steps off the map, where the cached blocks clamp, and
+/// fractions of a texel that leave level 0's origin put.
 fn small_step() -> impl Strategy<Value = [f64; 2]> {
     prop_oneof![
         8 => (-2i64..=2).prop_map(|d| [d as f64, 0.0]),
+        2 => [-0.75f64..0.75, -0.75f64..0.75],
         2 => (-3i64..=3, -40i64..=40).prop_map(|(x, y)| [x as f64, y as f64]),
         1 => (-20i64..=20, -3i64..=3).prop_map(|(x, y)| [x as f64, y as f64]),
     ]
@@ -159,6 +161,8 @@ proptest! {
             fresh.update(v);
             for (l, (a, b)) in cm.levels().iter().zip(fresh.levels()).enumerate() {
                 prop_assert_eq!(a.heights.origin(), b.heights.origin());
+                prop_assert_eq!(a.regions, b.regions);
+                prop_assert_eq!(a.morph, b.morph);
                 let bits = |t: &[f32]| t.iter().map(|h| h.to_bits()).collect::<Vec<_>>();
                 prop_assert!(
                     bits(a.heights.texels()) == bits(b.heights.texels()),

@@ -1,11 +1,11 @@
-//! A level's source columns, copied out 16 at a time.
+//! A level's source columns, copied out a block at a time.
 //!
 //! Walking east or west rewrites a column of the toroid: n texels from n
 //! different rows of a row-major pyramid level. On a wide level every row is
 //! its own page, so each texel costs a TLB miss; on the 32768-wide map of the
 //! update test that made a column several times dearer per texel than a row.
-//! The cache copies a block of 16 columns (a cache line of each row) over the
-//! window's rows plus a margin, column-major, once; the next 15 one-texel
+//! The cache copies a block of 32 columns (two cache lines of each row) over the
+//! window's rows plus a margin, column-major, once; the next 31 one-texel
 //! steps read it contiguously. The values are copies, so the toroid's bits do
 //! not change.
 

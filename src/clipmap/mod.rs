@@ -252,8 +252,20 @@ impl Clipmap {
             [0.0, 0.0]
         };
         self.viewer = viewer;
+        // While level 0's origin stays put (a still viewer, every other
+        // frame of a one-texel walk) and every level holds its window, the
+        // regions and toroids are already right: only the morph viewer moves.
+        let settled = self.pyramid.is_complete()
+            && self.stats.levels_deferred == 0
+            && self.stats.levels_unbuilt == 0
+            && self.regions.len() == count
+            && self.regions[0].origin == region::level0_origin(&self.params, viewer)
+            && self
+                .levels
+                .iter()
+                .zip(&self.regions)
+                .all(|(lv, r)| lv.heights.origin() == Some(r.origin));
         let mut regions = std::mem::take(&mut self.regions);
-        region::compute_into(&self.params, viewer, &mut regions);
         let mut stats = std::mem::take(&mut self.stats);
         stats.texels_per_level.clear();
         stats.texels_per_level.resize(count, 0);
@@ -263,7 +275,53 @@ impl Clipmap {
         stats.levels_deferred = 0;
         stats.levels_unbuilt = 0;
         stats.pyramid_samples = 0;
-        let ready = self.build_pyramid(&regions, &mut stats);
+        if !settled {
+            self.move_levels(viewer, &mut regions, &mut stats);
+        }
+        let clamped = region::clamp_viewer(self.params.map.as_ref(), viewer);
+        for l in 0..count {
+            let morph_on = self.cfg.morph
+                && l + 1 < count
+                && regions.get(l + 1).is_some_and(|r| r.active.is_some());
+            let lv = &mut self.levels[l];
+            // Read from the local copy: reading back the fields just stored
+            // stalls on store forwarding.
+            let r = regions[l];
+            lv.regions = r;
+            let g = (1i64 << l) as f64;
+            let o = r.origin;
+            lv.morph.viewer = [
+                (clamped[0] / g - o[0] as f64) as f32,
+                (clamped[1] / g - o[1] as f64) as f32,
+            ];
+            lv.morph.enabled = morph_on;
+            if let Some(a) = r.active {
+                let b = footprint::to_level(&a, l);
+                lv.morph.boundary = [
+                    (b[0] - o[0]) as i32,
+                    (b[1] - o[1]) as i32,
+                    (b[2] - o[0]) as i32,
+                    (b[3] - o[1]) as i32,
+                ];
+                lv.morph.stitched = r.map_sides.map(|s| !s);
+            }
+        }
+        self.regions = regions;
+        self.stats = stats;
+        &self.stats
+    }
+
+    /// Recomputes the regions for `viewer` and moves every ready level's
+    /// toroid to its new window, coarse first, within the texel budget.
+    fn move_levels(
+        &mut self,
+        viewer: [f64; 2],
+        regions: &mut Vec<region::LevelRegions>,
+        stats: &mut UpdateStats,
+    ) {
+        let count = self.levels.len();
+        region::compute_into(&self.params, viewer, regions);
+        let ready = self.build_pyramid(regions, stats);
         let complete = self.pyramid.is_complete();
         if ready < count {
             // The ready levels are drawn as a clipmap of their own: the
@@ -320,37 +378,6 @@ impl Clipmap {
             }
             stats.levels_deferred = d + 1;
         }
-        let clamped = region::clamp_viewer(self.params.map.as_ref(), viewer);
-        for l in 0..count {
-            let morph_on = self.cfg.morph
-                && l + 1 < count
-                && regions.get(l + 1).is_some_and(|r| r.active.is_some());
-            let lv = &mut self.levels[l];
-            // Read from the local copy: reading back the fields just stored
-            // stalls on store forwarding.
-            let r = regions[l];
-            lv.regions = r;
-            let g = (1i64 << l) as f64;
-            let o = r.origin;
-            lv.morph.viewer = [
-                (clamped[0] / g - o[0] as f64) as f32,
-                (clamped[1] / g - o[1] as f64) as f32,
-            ];
-            lv.morph.enabled = morph_on;
-            if let Some(a) = r.active {
-                let b = footprint::to_level(&a, l);
-                lv.morph.boundary = [
-                    (b[0] - o[0]) as i32,
-                    (b[1] - o[1]) as i32,
-                    (b[2] - o[0]) as i32,
-                    (b[3] - o[1]) as i32,
-                ];
-                lv.morph.stitched = r.map_sides.map(|s| !s);
-            }
-        }
-        self.regions = regions;
-        self.stats = stats;
-        &self.stats
     }
 
     /// For a lazy pyramid, builds the tiles under each level's window (one

@@ -169,12 +169,17 @@ pub fn compute(p: &RegionParams, viewer: [f64; 2]) -> Vec<LevelRegions> {
     out
 }
 
+/// Level 0's window origin for a viewer. Every level's regions follow from
+/// it, so while it stays put they do too.
+pub fn level0_origin(p: &RegionParams, viewer: [f64; 2]) -> [i64; 2] {
+    first_origin(p.n, clamp_viewer(p.map.as_ref(), viewer))
+}
+
 /// [`compute`] into a list kept from frame to frame, so an update
 /// allocates nothing.
 pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegions>) {
-    let v = clamp_viewer(p.map.as_ref(), viewer);
     out.clear();
-    let mut o = first_origin(p.n, v);
+    let mut o = level0_origin(p, viewer);
     for l in 0..p.levels {
         let g = 1i64 << l;
         out.push(LevelRegions {
