@@ -114,3 +114,33 @@ fn too_many_levels_is_an_error() {
         "{e}"
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    /// Updating only the levels whose origin moved gives `compute`'s regions
+    /// exactly: over walks of small steps and jumps, with and without a map,
+    /// and with more levels than the map allows, so that some are inactive.
+    #[test]
+    fn incremental_regions_equal_computed(
+        (n, w, h, levels, start) in case(),
+        extra in 0usize..3,
+        bounded in any::<bool>(),
+        steps in prop::collection::vec(prop_oneof![
+            6 => [-3.0f64..3.0, -3.0f64..3.0],
+            1 => [-3000.0f64..3000.0, -3000.0f64..3000.0],
+        ], 1..40),
+    ) {
+        let levels = levels + extra;
+        let map = bounded.then(|| map_bounds(w, h, levels));
+        let p = RegionParams { n, levels, map };
+        let mut v = start;
+        let mut kept = region::compute(&p, v);
+        for (i, d) in steps.iter().enumerate() {
+            v = [v[0] + d[0], v[1] + d[1]];
+            region::update_into(&p, v, &mut kept);
+            let want = region::compute(&p, v);
+            prop_assert_eq!(&kept, &want, "step {} to {:?}", i, v);
+        }
+    }
+}

@@ -255,10 +255,13 @@ impl Clipmap {
         // While level 0's origin stays put (a still viewer, every other
         // frame of a one-texel walk) and every level holds its window, the
         // regions and toroids are already right: only the morph viewer moves.
-        let settled = self.pyramid.is_complete()
-            && self.stats.levels_deferred == 0
+        // The last frame's regions are `region::compute`'s own (none was
+        // cut back for a budget or an unbuilt level).
+        let pristine = self.stats.levels_deferred == 0
             && self.stats.levels_unbuilt == 0
-            && self.regions.len() == count
+            && self.regions.len() == count;
+        let settled = pristine
+            && self.pyramid.is_complete()
             && self.regions[0].origin == region::level0_origin(&self.params, viewer)
             && self
                 .levels
@@ -276,25 +279,35 @@ impl Clipmap {
         stats.levels_unbuilt = 0;
         stats.pyramid_samples = 0;
         if !settled {
+            if pristine {
+                region::update_into(&self.params, viewer, &mut regions);
+            } else {
+                region::compute_into(&self.params, viewer, &mut regions);
+            }
             self.move_levels(viewer, &mut regions, &mut stats);
         }
         let clamped = region::clamp_viewer(self.params.map.as_ref(), viewer);
+        // 2^-l: exact, so the product has the bits of a division by 2^l.
+        let mut scale = 1.0f64;
         for l in 0..count {
-            let morph_on = self.cfg.morph
-                && l + 1 < count
-                && regions.get(l + 1).is_some_and(|r| r.active.is_some());
             let lv = &mut self.levels[l];
             // Read from the local copy: reading back the fields just stored
             // stalls on store forwarding.
             let r = regions[l];
-            lv.regions = r;
-            let g = (1i64 << l) as f64;
             let o = r.origin;
             lv.morph.viewer = [
-                (clamped[0] / g - o[0] as f64) as f32,
-                (clamped[1] / g - o[1] as f64) as f32,
+                (clamped[0] * scale - o[0] as f64) as f32,
+                (clamped[1] * scale - o[1] as f64) as f32,
             ];
-            lv.morph.enabled = morph_on;
+            scale *= 0.5;
+            if settled {
+                // Regions, and so the rest of the morph constants, as before.
+                continue;
+            }
+            lv.regions = r;
+            lv.morph.enabled = self.cfg.morph
+                && l + 1 < count
+                && regions.get(l + 1).is_some_and(|r| r.active.is_some());
             if let Some(a) = r.active {
                 let b = footprint::to_level(&a, l);
                 lv.morph.boundary = [
@@ -311,16 +324,16 @@ impl Clipmap {
         &self.stats
     }
 
-    /// Recomputes the regions for `viewer` and moves every ready level's
-    /// toroid to its new window, coarse first, within the texel budget.
+    /// Moves every ready level's toroid to its window in `regions` (the
+    /// viewer's), coarse first, within the texel budget; a lazy pyramid's
+    /// unbuilt levels and the levels past the budget are made inactive.
     fn move_levels(
         &mut self,
         viewer: [f64; 2],
-        regions: &mut Vec<region::LevelRegions>,
+        regions: &mut [region::LevelRegions],
         stats: &mut UpdateStats,
     ) {
         let count = self.levels.len();
-        region::compute_into(&self.params, viewer, regions);
         let ready = self.build_pyramid(regions, stats);
         let complete = self.pyramid.is_complete();
         if ready < count {
@@ -340,6 +353,9 @@ impl Clipmap {
         for l in (0..ready).rev() {
             let lv = &mut self.levels[l];
             let origin = regions[l].origin;
+            if lv.heights.origin() == Some(origin) {
+                continue;
+            }
             let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
             if rects.is_empty() {
                 continue;

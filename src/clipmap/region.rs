@@ -181,22 +181,59 @@ pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegio
     out.clear();
     let mut o = level0_origin(p, viewer);
     for l in 0..p.levels {
-        let g = 1i64 << l;
         out.push(LevelRegions {
             origin: o,
-            clip: Rect::new(
-                o[0] * g,
-                o[1] * g,
-                (o[0] + p.n - 1) * g,
-                (o[1] + p.n - 1) * g,
-            ),
+            clip: clip_of(p.n, o, l),
             active: None,
             map_sides: [false; 4],
         });
         o = coarser_origin(o, block_size(p.n));
     }
-    let mut coarser: Option<Rect> = None;
-    for l in (0..p.levels).rev() {
+    activate(p, out, p.levels);
+}
+
+/// [`compute_into`] for a list that holds `compute`'s result for an earlier
+/// viewer: only the levels up to the coarsest whose origin moved are
+/// recomputed, since a level's regions depend on its origin and on the
+/// coarser levels alone. A one-texel walk moves level l every 2^(l+1)
+/// frames, so most frames touch one or two levels. Same result, bit for bit.
+pub fn update_into(p: &RegionParams, viewer: [f64; 2], out: &mut [LevelRegions]) {
+    debug_assert_eq!(out.len(), p.levels);
+    let mut o = level0_origin(p, viewer);
+    let mut moved = 0;
+    for (l, r) in out.iter_mut().enumerate() {
+        if r.origin == o {
+            // Coarser origins follow from this one, so they stay put too.
+            break;
+        }
+        *r = LevelRegions {
+            origin: o,
+            clip: clip_of(p.n, o, l),
+            active: None,
+            map_sides: [false; 4],
+        };
+        moved = l + 1;
+        o = coarser_origin(o, block_size(p.n));
+    }
+    activate(p, out, moved);
+}
+
+fn clip_of(n: i64, o: [i64; 2], l: usize) -> Rect {
+    let g = 1i64 << l;
+    Rect::new(o[0] * g, o[1] * g, (o[0] + n - 1) * g, (o[1] + n - 1) * g)
+}
+
+/// Active regions of levels `[0, upto)`, coarse to fine, from their clip
+/// regions and the active region of level `upto` (if there is one). The
+/// coarsest is its clip region cropped to the map; each finer one is its
+/// clip region ∩ map ∩ the coarser active region eroded by 2 coarse texels.
+/// Below an inactive level every level is inactive.
+fn activate(p: &RegionParams, out: &mut [LevelRegions], upto: usize) {
+    let mut coarser: Option<Rect> = out.get(upto).and_then(|r| r.active);
+    if upto < p.levels && coarser.is_none() {
+        return;
+    }
+    for l in (0..upto).rev() {
         let clip = out[l].clip;
         let active = match (&p.map, l + 1 == p.levels) {
             (None, _) => Some(clip),
