@@ -251,7 +251,7 @@ impl Clipmap {
         } else {
             [0.0, 0.0]
         };
-        self.viewer = viewer;
+        let previous = std::mem::replace(&mut self.viewer, viewer);
         // While level 0's origin stays put (a still viewer, every other
         // frame of a one-texel walk) and every level holds its window, the
         // regions and toroids are already right: only the morph viewer moves.
@@ -321,7 +321,43 @@ impl Clipmap {
         }
         self.regions = regions;
         self.stats = stats;
+        self.prefetch_ahead(previous, viewer);
         &self.stats
+    }
+
+    /// Starts loading the source texels the next update will copy if the
+    /// viewer repeats its last step, so that copy finds them in cache: the
+    /// rows a vertical step exposes, and for a horizontal step a slice of
+    /// the column block it will enter next. Only for small steps and a
+    /// complete pyramid (a lazy one may not have built them). A hint: no
+    /// value changes.
+    fn prefetch_ahead(&self, previous: [f64; 2], viewer: [f64; 2]) {
+        let d = [viewer[0] - previous[0], viewer[1] - previous[1]];
+        let small = d.iter().all(|c| c.abs() <= 8.0) && d != [0.0, 0.0];
+        if !small || !self.pyramid.is_complete() {
+            return;
+        }
+        let (n, m) = (self.n, region::block_size(self.n));
+        let next = [viewer[0] + d[0], viewer[1] + d[1]];
+        let mut o = region::level0_origin(&self.params, next);
+        for (lv, src) in self.levels.iter().zip(&self.pyramid.levels) {
+            let Some(cur) = lv.heights.origin() else {
+                break;
+            };
+            if o == cur {
+                // Coarser origins follow from this one: they stay put too.
+                break;
+            }
+            let rows = if o[1] > cur[1] {
+                cur[1] + n..o[1] + n
+            } else {
+                o[1]..cur[1]
+            };
+            for y in rows {
+                src.prefetch_row(o[0], o[0] + n, y, true);
+            }
+            o = region::coarser_origin(o, m);
+        }
     }
 
     /// Moves every ready level's toroid to its window in `regions` (the

@@ -134,7 +134,7 @@ fn first_origin(n: i64, v: [f64; 2]) -> [i64; 2] {
 }
 
 /// The next coarser level's origin, see [`first_origin`].
-fn coarser_origin(o: [i64; 2], m: i64) -> [i64; 2] {
+pub fn coarser_origin(o: [i64; 2], m: i64) -> [i64; 2] {
     o.map(|c| {
         let f = c / 2;
         if (f - m).rem_euclid(2) == 0 {

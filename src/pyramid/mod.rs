@@ -145,6 +145,21 @@ impl PyramidLevel {
     /// where the run lies inside the level (the usual case for a clipmap
     /// update's rows and columns).
     #[inline]
+    /// Starts fetching texels `[x0, x1)` of row `y` (clamped to the level
+    /// like [`Self::copy_clamped`]) for a copy a frame or more later: into
+    /// the nearest cache when `near`, else into L2.
+    pub fn prefetch_row(&self, x0: i64, x1: i64, y: i64, near: bool) {
+        if self.width == 0 || self.height == 0 {
+            return;
+        }
+        let w = self.width as i64;
+        let (a, b) = (x0.clamp(0, w - 1) as usize, x1.clamp(1, w) as usize);
+        let yc = y.clamp(0, self.height as i64 - 1) as usize;
+        if let Some(run) = self.data.get(yc * self.width + a..yc * self.width + b) {
+            prefetch_run(run, near);
+        }
+    }
+
     pub fn copy_clamped(&self, x0: i64, y: i64, out: &mut [f32]) {
         let w = self.width as i64;
         let yc = y.clamp(0, self.height as i64 - 1) as usize;
@@ -164,6 +179,33 @@ impl PyramidLevel {
                 *o = row[(x0 + i as i64).clamp(0, w - 1) as usize];
             }
         }
+    }
+}
+
+/// Asks the processor to start loading the cache lines under `run`. A hint
+/// only: no value changes, and it does nothing off x86-64.
+pub fn prefetch_run(run: &[f32], near: bool) {
+    // One touch per 64-byte line, and the last texel for a line the stride
+    // steps over.
+    let last = run.len().saturating_sub(1);
+    for i in (0..run.len())
+        .step_by(16)
+        .chain((!run.is_empty()).then_some(last))
+    {
+        let p = run[i..].as_ptr() as *const i8;
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: SSE is part of x86-64, and a prefetch neither reads the
+        // value nor faults.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0, _MM_HINT_T1};
+            if near {
+                _mm_prefetch::<_MM_HINT_T0>(p);
+            } else {
+                _mm_prefetch::<_MM_HINT_T1>(p);
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (p, near);
     }
 }
 
@@ -308,6 +350,36 @@ fn with_range(mut l: PyramidLevel) -> PyramidLevel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Prefetch hints clamp like copies: any range, on or off the level,
+    /// inverted or empty, is accepted and changes nothing.
+    #[test]
+    fn prefetch_rows_anywhere_change_nothing() {
+        let data: Vec<f32> = (0..40 * 30).map(|i| i as f32).collect();
+        let lv = PyramidLevel {
+            width: 40,
+            height: 30,
+            data: data.clone(),
+            nodata: vec![false; 40 * 30],
+            min: 0.0,
+            max: 0.0,
+        };
+        for (x0, x1) in [
+            (0, 40),
+            (-100, -50),
+            (35, 90),
+            (60, 70),
+            (20, 10),
+            (5, 5),
+            (-3, 3),
+        ] {
+            for y in [-5, 0, 29, 400] {
+                lv.prefetch_row(x0, x1, y, y % 2 == 0);
+            }
+        }
+        prefetch_run(&[], true);
+        assert_eq!(lv.data, data);
+    }
 
     fn bump(sigma: f64) -> Heightmap {
         let n = 65;
