@@ -46,6 +46,9 @@ struct ScalingArgs {
     update_n: i64,
     #[arg(long, default_value_t = 10)]
     update_levels: usize,
+    /// Repeats of the update test (medians reported).
+    #[arg(long, default_value_t = 5)]
+    update_repeats: usize,
     /// n of the lazy first-frame test (largest size, every level).
     #[arg(long, default_value_t = 255)]
     first_n: i64,
@@ -66,6 +69,7 @@ impl ScalingArgs {
             brute_max: self.brute_max,
             update_n: self.update_n,
             update_levels: self.update_levels,
+            update_repeats: self.update_repeats,
             first_n: self.first_n,
             first_budget: self.first_budget,
             ..Default::default()
@@ -651,13 +655,14 @@ fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
     }
     let u = &r.update;
     println!(
-        "full update n={} L={} on a {}-wide map: {:.3} ms after a jump, {:.3} ms for the same window again ({} texels)",
-        u.n, u.levels, u.size, u.full_ms, u.full_same_window_ms, u.full_texels
+        "full update n={} L={} on a {}-wide map ({} repeats): {:.3} ms after a jump ({:.3} ms on one thread), {:.3} ms for the same window again ({} texels)",
+        u.n, u.levels, u.size, u.repeats, u.full_ms, u.full_one_core_ms, u.full_same_window_ms, u.full_texels
     );
     for w in &u.walks {
+        let each: Vec<String> = w.overheads.iter().map(|o| format!("{o:.2}")).collect();
         println!(
-            "  walk {:<5} {:.4} ms/frame ({:.0} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2)",
-            w.direction, w.incremental_ms, w.incremental_texels, w.time_ratio, w.texel_ratio, w.overhead
+            "  walk {:<5} {:.4} ms/frame ({:.0} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2; repeats {}), against one thread {:.2}",
+            w.direction, w.incremental_ms, w.incremental_texels, w.time_ratio, w.texel_ratio, w.overhead, each.join(" "), w.overhead_one_core
         );
     }
     let m = &r.memory;

@@ -39,6 +39,8 @@ pub struct Options {
     /// n and L of the incremental-update test, on its own map.
     pub update_n: i64,
     pub update_levels: usize,
+    /// Repeats of the update test's walks and rebuilds; medians reported.
+    pub update_repeats: usize,
     pub image: [u32; 2],
     /// n of the lazy first-frame test on the largest size (every level
     /// the map allows), and the lazy pyramid's samples per frame.
@@ -58,6 +60,7 @@ impl Default for Options {
             brute_max: 2048,
             update_n: 255,
             update_levels: 10,
+            update_repeats: 5,
             image: [960, 540],
             first_n: 255,
             first_budget: crate::scene::DEFAULT_LAZY_BUDGET,
@@ -92,10 +95,16 @@ pub struct UpdateRow {
     /// and what the walks read too: the incremental overhead is taken
     /// against this.
     pub full_ms: f64,
+    /// The same, with the rebuild confined to one thread like a step: what
+    /// a step's cost per texel is up against without the second core.
+    pub full_one_core_ms: f64,
     /// Median of rebuilds of one window again and again, its source
     /// already in cache: the best a rebuild can do.
     pub full_same_window_ms: f64,
     pub full_texels: u64,
+    /// Each repeat walks from its own start, on terrain the others did
+    /// not read, with its own rebuilds; the walks' figures are medians.
+    pub repeats: usize,
     /// Walks east (each level writes columns) and south (rows).
     pub walks: Vec<Walk>,
 }
@@ -105,13 +114,19 @@ pub struct UpdateRow {
 pub struct Walk {
     pub direction: &'static str,
     pub frames: usize,
-    /// Mean per frame.
+    /// Mean per frame (median of the repeats).
     pub incremental_ms: f64,
     pub incremental_texels: f64,
+    /// incremental_ms ÷ full_ms.
     pub time_ratio: f64,
     pub texel_ratio: f64,
-    /// time_ratio ÷ texel_ratio; the target is ≤ 1.2.
+    /// Median over repeats of (walk ÷ that repeat's rebuilds) ÷
+    /// texel_ratio; the target is ≤ 1.2.
     pub overhead: f64,
+    /// Each repeat's overhead.
+    pub overheads: Vec<f64>,
+    /// The overhead against the one-thread rebuilds.
+    pub overhead_one_core: f64,
 }
 
 /// Peak resident memory while every size was loaded and its pyramid built.
@@ -209,6 +224,12 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     }
     // Checked before the long work, not after it.
     update_dims(opts.update_n, opts.update_levels)?;
+    if !(1..=1000).contains(&opts.update_repeats) {
+        return Err(Error::value(
+            "scaling.update_repeats",
+            "must be within 1..=1000",
+        ));
+    }
     scene(base, opts.sizes[0], "clipmap", opts).validate()?;
     // First, in a process that has built nothing yet.
     tick("lazy first frame");
@@ -426,7 +447,7 @@ fn update_dims(n: i64, levels: usize) -> Result<(usize, usize)> {
 }
 
 /// One-texel-per-frame walks of 4 · 2^(L−1) frames (every level moves at
-/// least four times) against full rebuilds.
+/// least four times) against full rebuilds, repeated.
 fn update_test(opts: &Options) -> Result<UpdateRow> {
     let pyramid = Arc::new(update_map(opts.update_n, opts.update_levels)?);
     let (size, rows) = (pyramid.levels[0].width, pyramid.levels[0].height);
@@ -435,67 +456,111 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         levels: Some(opts.update_levels),
         ..Default::default()
     };
+    let repeats = opts.update_repeats;
     let centre = [size as f64 / 2.0, rows as f64 / 2.0];
     // Rebuilds run on a second clipmap, interleaved with the walks' frames
     // (8 chunks per walk), so a slow spell of this machine hits both
     // sides of the ratio. Each rewrites every texel of every level, in
     // memory already in use (a fresh clipmap would also time page faults),
-    // after a jump to one of 16 places across the map, an eighth of its
+    // after a jump to one of 32 places across the map, an eighth of its
     // height from the top or bottom, clear of the walks from the centre.
+    // After each chunk come one rebuild on the global pool and one on a
+    // pool of one thread.
     let mut walker = Clipmap::new(pyramid, cfg)?;
     walker.update(centre);
     let mut jumper = walker.clone();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| Error::value("scaling.update", format!("no one-thread pool: {e}")))?;
     let mut full_texels = 0;
-    let mut rebuild = |at: [f64; 2]| {
+    let mut rebuild = |at: [f64; 2], single: bool| {
         jumper.invalidate();
         let t = Instant::now();
-        full_texels = jumper.update(at).texels_total;
+        full_texels = if single {
+            one.install(|| jumper.update(at).texels_total)
+        } else {
+            jumper.update(at).texels_total
+        };
         t.elapsed().as_secs_f64() * 1e3
     };
     let jump = |k: usize| {
-        let y = if k % 2 == 0 { 0.125 } else { 0.875 };
-        [size as f64 * (k as f64 + 0.5) / 16.0, rows as f64 * y]
+        let y = if (k / 16) % 2 == 0 { 0.125 } else { 0.875 };
+        [
+            size as f64 * ((k % 16) as f64 + 0.5) / 16.0,
+            rows as f64 * y,
+        ]
     };
     // Four cycles of the coarsest level, so one preempted frame does not
     // decide the mean.
     let frames = 4usize << (opts.update_levels - 1);
     let chunks = frames.min(8);
-    let mut jumps = Vec::new();
-    let mut walked = Vec::new();
-    for (w, (direction, d)) in [("east", [1.0, 0.0]), ("south", [0.0, 1.0])]
-        .into_iter()
-        .enumerate()
-    {
-        walker.update(centre);
-        let (mut ms, mut texels) = (0.0, 0u64);
-        for c in 0..chunks {
-            let t = Instant::now();
-            for f in c * frames / chunks + 1..=(c + 1) * frames / chunks {
-                let f = f as f64;
-                texels += walker
-                    .update([centre[0] + f * d[0], centre[1] + f * d[1]])
-                    .texels_total;
+    let dirs = [("east", [1.0, 0.0]), ("south", [0.0, 1.0])];
+    let (mut all_full, mut all_one) = (Vec::new(), Vec::new());
+    // Per direction, per repeat: (ms per frame, texels per frame, the
+    // repeat's rebuild medians on both pools).
+    let mut runs: Vec<Vec<(f64, f64, f64, f64)>> = vec![Vec::new(); dirs.len()];
+    let mut k = 0;
+    for r in 0..repeats {
+        // Each repeat starts a 32nd of the width and a 16th of the height
+        // further on, so its walks read terrain the others did not.
+        let shift = r as f64 - (repeats - 1) as f64 / 2.0;
+        let start = [
+            centre[0] + shift * size as f64 / 32.0,
+            centre[1] + shift * rows as f64 / 16.0,
+        ];
+        for (run, (_, d)) in runs.iter_mut().zip(dirs) {
+            walker.update(start);
+            let (mut ms, mut texels) = (0.0, 0u64);
+            let (mut full, mut single) = (Vec::new(), Vec::new());
+            for c in 0..chunks {
+                let t = Instant::now();
+                for f in c * frames / chunks + 1..=(c + 1) * frames / chunks {
+                    let f = f as f64;
+                    texels += walker
+                        .update([start[0] + f * d[0], start[1] + f * d[1]])
+                        .texels_total;
+                }
+                ms += t.elapsed().as_secs_f64() * 1e3;
+                full.push(rebuild(jump(k), false));
+                single.push(rebuild(jump(k + 1), true));
+                k += 2;
             }
-            ms += t.elapsed().as_secs_f64() * 1e3;
-            jumps.push(rebuild(jump(w * chunks + c)));
+            all_full.extend_from_slice(&full);
+            all_one.extend_from_slice(&single);
+            run.push((
+                ms / frames as f64,
+                texels as f64 / frames as f64,
+                median(&full),
+                median(&single),
+            ));
         }
-        walked.push((direction, ms / frames as f64, texels as f64 / frames as f64));
     }
-    let same: Vec<f64> = (0..15).map(|_| rebuild(centre)).collect();
-    let (full_ms, full_same_window_ms) = (median(&jumps), median(&same));
-    let walks = walked
-        .into_iter()
-        .map(|(direction, incremental_ms, incremental_texels)| {
-            let time_ratio = incremental_ms / full_ms;
-            let texel_ratio = incremental_texels / full_texels as f64;
+    let same: Vec<f64> = (0..15).map(|_| rebuild(centre, false)).collect();
+    let (full_ms, full_one_core_ms) = (median(&all_full), median(&all_one));
+    let walks = dirs
+        .iter()
+        .zip(&runs)
+        .map(|((direction, _), run)| {
+            let all = full_texels as f64;
+            // (walk ÷ rebuild) ÷ (texels ÷ all texels), per repeat.
+            let over = |full: fn(&(f64, f64, f64, f64)) -> f64| -> Vec<f64> {
+                run.iter().map(|x| x.0 / full(x) / (x.1 / all)).collect()
+            };
+            let (overheads, one_core) = (over(|x| x.2), over(|x| x.3));
+            let ms: Vec<f64> = run.iter().map(|x| x.0).collect();
+            let texels: Vec<f64> = run.iter().map(|x| x.1).collect();
+            let (incremental_ms, incremental_texels) = (median(&ms), median(&texels));
             Walk {
                 direction,
                 frames,
                 incremental_ms,
                 incremental_texels,
-                time_ratio,
-                texel_ratio,
-                overhead: time_ratio / texel_ratio,
+                time_ratio: incremental_ms / full_ms,
+                texel_ratio: incremental_texels / all,
+                overhead: median(&overheads),
+                overheads,
+                overhead_one_core: median(&one_core),
             }
         })
         .collect();
@@ -504,8 +569,10 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         n: opts.update_n,
         levels: opts.update_levels,
         full_ms,
-        full_same_window_ms,
+        full_one_core_ms,
+        full_same_window_ms: median(&same),
         full_texels,
+        repeats,
         walks,
     })
 }

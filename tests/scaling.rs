@@ -65,6 +65,7 @@ fn scaling_report_figures() {
         brute_max: 512,
         update_n: 31,
         update_levels: 4,
+        update_repeats: 3,
         image: [96, 54],
         first_n: 31,
         first_budget: 20_000,
@@ -84,9 +85,16 @@ fn scaling_report_figures() {
     assert!(b1 > 3 * b0, "brute force: {b0} -> {b1}");
     assert_eq!(r.update.full_texels, 4 * 31 * 31);
     assert!(r.update.full_ms > 0.0 && r.update.full_same_window_ms > 0.0);
-    assert_eq!(r.update.walks.len(), 2);
+    assert!(r.update.full_one_core_ms > 0.0);
+    assert_eq!((r.update.repeats, r.update.walks.len()), (3, 2));
     for w in &r.update.walks {
         assert_eq!(w.frames, 32);
+        assert_eq!(w.overheads.len(), 3);
+        assert!(
+            w.overheads.contains(&w.overhead),
+            "the median is one of them"
+        );
+        assert!(w.overhead_one_core > 0.0);
         assert!(w.incremental_texels > 0.0);
         assert!(w.texel_ratio < 0.2, "{}", w.texel_ratio);
     }
@@ -122,6 +130,7 @@ fn bad_scaling_options_are_errors() {
         brute_max: 0,
         update_n: 31,
         update_levels: 4,
+        update_repeats: 1,
         image: [32, 18],
         first_n: 31,
         first_budget: 1000,
@@ -155,6 +164,13 @@ fn bad_scaling_options_are_errors() {
                 ..ok.clone()
             },
             "update_levels",
+        ),
+        (
+            Options {
+                update_repeats: 0,
+                ..ok.clone()
+            },
+            "update_repeats",
         ),
         (
             Options {
