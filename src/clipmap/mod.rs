@@ -16,6 +16,7 @@ use crate::pyramid::Pyramid;
 use crate::world::WorldMap;
 use footprint::{Footprints, Instance};
 use level::ClipLevel;
+use rayon::prelude::*;
 use region::{Rect, RegionParams};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -415,11 +416,6 @@ impl Clipmap {
                 }
                 _ => lv.columns.clear(),
             }
-            let level = columns::LevelSource {
-                level: src,
-                cache: &lv.columns,
-            };
-            lv.heights.move_from(origin, &rects, &level);
             stats.texels_per_level[l] = needed;
             stats.texels_total += needed;
             stats.rects_per_level[l] = rects;
@@ -429,6 +425,27 @@ impl Clipmap {
                 r.active = None;
             }
             stats.levels_deferred = d + 1;
+        }
+        // The writes, once planned. Each level's toroid is its own, so a
+        // large update (after a jump) writes all levels in one parallel
+        // pass: one fork for the frame, not one per level, each of which
+        // had to wake the pool again. A step's few hundred texels stay on
+        // this thread.
+        let (pyramid, plan, regions) = (&self.pyramid, &stats.rects_per_level, &*regions);
+        let write = |(l, lv): (usize, &mut ClipLevel)| {
+            let rects = &plan[l];
+            if !rects.is_empty() {
+                let src = columns::LevelSource {
+                    level: &pyramid.levels[l],
+                    cache: &lv.columns,
+                };
+                lv.heights.move_from(regions[l].origin, rects, &src);
+            }
+        };
+        if stats.texels_total >= toroid::PARALLEL_TEXELS as u64 {
+            self.levels.par_iter_mut().enumerate().for_each(write);
+        } else {
+            self.levels.iter_mut().enumerate().for_each(write);
         }
     }
 

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 /// Texels below which an update is written on the calling thread.
-const PARALLEL_TEXELS: usize = 16 * 1024;
+pub const PARALLEL_TEXELS: usize = 16 * 1024;
 
 /// A half-open rectangle `[x0, x1) × [y0, y1)` in toroid (texel) space.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
