@@ -326,12 +326,12 @@ impl Clipmap {
         &self.stats
     }
 
-    /// Starts loading the source texels the next update will copy if the
-    /// viewer repeats its last step, so that copy finds them in cache: the
-    /// rows a vertical step exposes, and for a horizontal step a slice of
-    /// the column block it will enter next. Only for small steps and a
-    /// complete pyramid (a lazy one may not have built them). A hint: no
-    /// value changes.
+    /// Starts loading the source rows the next update will copy if the
+    /// viewer repeats its last vertical step, so that copy finds them in
+    /// cache. (Column blocks are not prefetched: each of their rows is
+    /// another page walk, which made east walks slower.) Only for small
+    /// steps and a complete pyramid (a lazy one may not have built them).
+    /// A hint: no value changes.
     fn prefetch_ahead(&self, previous: [f64; 2], viewer: [f64; 2]) {
         let d = [viewer[0] - previous[0], viewer[1] - previous[1]];
         let small = d.iter().all(|c| c.abs() <= 8.0) && d != [0.0, 0.0];
@@ -355,7 +355,7 @@ impl Clipmap {
                 o[1]..cur[1]
             };
             for y in rows {
-                src.prefetch_row(o[0], o[0] + n, y, true);
+                src.prefetch_row(o[0], o[0] + n, y);
             }
             o = region::coarser_origin(o, m);
         }
@@ -393,10 +393,8 @@ impl Clipmap {
             if lv.heights.origin() == Some(origin) {
                 continue;
             }
+            // Moved (or first filled), so never empty.
             let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
-            if rects.is_empty() {
-                continue;
-            }
             let needed: u64 = rects.iter().map(|r| r.area() as u64).sum();
             if needed > budget && l + 1 < ready {
                 deferred_from = Some(l);

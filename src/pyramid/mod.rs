@@ -140,15 +140,10 @@ impl PyramidLevel {
         self.data[yc * self.width + xc]
     }
 
-    /// Samples `(x0 + i, y)` into `out[i]`, coordinates clamped like
-    /// [`PyramidLevel::get_clamped`]: one row lookup per run, and a copy
-    /// where the run lies inside the level (the usual case for a clipmap
-    /// update's rows and columns).
-    #[inline]
     /// Starts fetching texels `[x0, x1)` of row `y` (clamped to the level
-    /// like [`Self::copy_clamped`]) for a copy a frame or more later: into
-    /// the nearest cache when `near`, else into L2.
-    pub fn prefetch_row(&self, x0: i64, x1: i64, y: i64, near: bool) {
+    /// like [`Self::copy_clamped`]) into the nearest cache, for a copy a
+    /// frame later.
+    pub fn prefetch_row(&self, x0: i64, x1: i64, y: i64) {
         if self.width == 0 || self.height == 0 {
             return;
         }
@@ -156,10 +151,15 @@ impl PyramidLevel {
         let (a, b) = (x0.clamp(0, w - 1) as usize, x1.clamp(1, w) as usize);
         let yc = y.clamp(0, self.height as i64 - 1) as usize;
         if let Some(run) = self.data.get(yc * self.width + a..yc * self.width + b) {
-            prefetch_run(run, near);
+            prefetch_run(run);
         }
     }
 
+    /// Samples `(x0 + i, y)` into `out[i]`, coordinates clamped like
+    /// [`PyramidLevel::get_clamped`]: one row lookup per run, and a copy
+    /// where the run lies inside the level (the usual case for a clipmap
+    /// update's rows and columns).
+    #[inline]
     pub fn copy_clamped(&self, x0: i64, y: i64, out: &mut [f32]) {
         let w = self.width as i64;
         let yc = y.clamp(0, self.height as i64 - 1) as usize;
@@ -184,7 +184,7 @@ impl PyramidLevel {
 
 /// Asks the processor to start loading the cache lines under `run`. A hint
 /// only: no value changes, and it does nothing off x86-64.
-pub fn prefetch_run(run: &[f32], near: bool) {
+pub fn prefetch_run(run: &[f32]) {
     // One touch per 64-byte line, and the last texel for a line the stride
     // steps over.
     let last = run.len().saturating_sub(1);
@@ -197,15 +197,11 @@ pub fn prefetch_run(run: &[f32], near: bool) {
         // SAFETY: SSE is part of x86-64, and a prefetch neither reads the
         // value nor faults.
         unsafe {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0, _MM_HINT_T1};
-            if near {
-                _mm_prefetch::<_MM_HINT_T0>(p);
-            } else {
-                _mm_prefetch::<_MM_HINT_T1>(p);
-            }
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            _mm_prefetch::<_MM_HINT_T0>(p);
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (p, near);
+        let _ = p;
     }
 }
 
@@ -374,10 +370,10 @@ mod tests {
             (-3, 3),
         ] {
             for y in [-5, 0, 29, 400] {
-                lv.prefetch_row(x0, x1, y, y % 2 == 0);
+                lv.prefetch_row(x0, x1, y);
             }
         }
-        prefetch_run(&[], true);
+        prefetch_run(&[]);
         assert_eq!(lv.data, data);
     }
 
