@@ -446,6 +446,16 @@ fn update_dims(n: i64, levels: usize) -> Result<(usize, usize)> {
     Ok((w, h))
 }
 
+/// One repeat of one walk direction: per frame, and its own rebuilds'
+/// medians on both pools.
+#[derive(Clone, Copy)]
+struct Repeat {
+    ms: f64,
+    texels: f64,
+    full_ms: f64,
+    one_core_ms: f64,
+}
+
 /// One-texel-per-frame walks of 4 · 2^(L−1) frames (every level moves at
 /// least four times) against full rebuilds, repeated.
 fn update_test(opts: &Options) -> Result<UpdateRow> {
@@ -497,9 +507,7 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
     let chunks = frames.min(8);
     let dirs = [("east", [1.0, 0.0]), ("south", [0.0, 1.0])];
     let (mut all_full, mut all_one) = (Vec::new(), Vec::new());
-    // Per direction, per repeat: (ms per frame, texels per frame, the
-    // repeat's rebuild medians on both pools).
-    let mut runs: Vec<Vec<(f64, f64, f64, f64)>> = vec![Vec::new(); dirs.len()];
+    let mut runs: Vec<Vec<Repeat>> = vec![Vec::new(); dirs.len()];
     let mut k = 0;
     for r in 0..repeats {
         // Each repeat starts a 32nd of the width and a 16th of the height
@@ -528,12 +536,12 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
             }
             all_full.extend_from_slice(&full);
             all_one.extend_from_slice(&single);
-            run.push((
-                ms / frames as f64,
-                texels as f64 / frames as f64,
-                median(&full),
-                median(&single),
-            ));
+            run.push(Repeat {
+                ms: ms / frames as f64,
+                texels: texels as f64 / frames as f64,
+                full_ms: median(&full),
+                one_core_ms: median(&single),
+            });
         }
     }
     let same: Vec<f64> = (0..15).map(|_| rebuild(centre, false)).collect();
@@ -544,12 +552,14 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         .map(|((direction, _), run)| {
             let all = full_texels as f64;
             // (walk ÷ rebuild) ÷ (texels ÷ all texels), per repeat.
-            let over = |full: fn(&(f64, f64, f64, f64)) -> f64| -> Vec<f64> {
-                run.iter().map(|x| x.0 / full(x) / (x.1 / all)).collect()
+            let over = |full: fn(&Repeat) -> f64| -> Vec<f64> {
+                run.iter()
+                    .map(|x| x.ms / full(x) / (x.texels / all))
+                    .collect()
             };
-            let (overheads, one_core) = (over(|x| x.2), over(|x| x.3));
-            let ms: Vec<f64> = run.iter().map(|x| x.0).collect();
-            let texels: Vec<f64> = run.iter().map(|x| x.1).collect();
+            let (overheads, one_core) = (over(|x| x.full_ms), over(|x| x.one_core_ms));
+            let ms: Vec<f64> = run.iter().map(|x| x.ms).collect();
+            let texels: Vec<f64> = run.iter().map(|x| x.texels).collect();
             let (incremental_ms, incremental_texels) = (median(&ms), median(&texels));
             Walk {
                 direction,
