@@ -4,12 +4,15 @@
 //! different rows of a row-major pyramid level. On a wide level every row is
 //! its own page, so each texel costs a TLB miss; on the 32768-wide map of the
 //! update test that made a column several times dearer per texel than a row.
-//! The cache copies a block of 32 columns (two cache lines of each row) over the
-//! window's rows plus a margin, column-major, once; the next 31 one-texel
-//! steps read it contiguously. The values are copies, so the toroid's bits do
-//! not change.
+//! The cache copies a block of 32 columns (two cache lines of each row) over
+//! the window's rows plus a margin, once; the next 31 one-texel steps read
+//! it from cache. The block keeps the rows' layout (32 texels per row, 128
+//! bytes apart): a fill then stores two lines per source row, few enough
+//! stores that many rows' misses are in flight at once, where transposing
+//! it to columns stored 32 scattered texels per row and stalled on them.
+//! The values are copies, so the toroid's bits do not change.
 
-use super::toroid::{Column, Source};
+use super::toroid::{Narrow, Source};
 use crate::pyramid::PyramidLevel;
 
 /// Columns per block: two 64-byte lines of f32s (the second comes nearly
@@ -20,7 +23,7 @@ pub const BLOCK: i64 = 32;
 const MARGIN: i64 = 32;
 
 /// Columns `[x0, x0 + BLOCK)` × rows `[y0, y0 + rows)` of one level, sampled
-/// with clamping like [`PyramidLevel::get_clamped`], column-major.
+/// with clamping like [`PyramidLevel::get_clamped`], row by row.
 #[derive(Clone, Debug, Default)]
 pub struct ColumnCache {
     x0: i64,
@@ -43,40 +46,43 @@ impl ColumnCache {
             return;
         }
         let (top, rows) = (y0 - MARGIN, y1 - y0 + 2 * MARGIN);
-        self.data.resize((BLOCK * rows) as usize, 0.0);
+        let b = BLOCK as usize;
+        self.data.resize(b * rows as usize, 0.0);
         let inside = bx >= 0 && bx + BLOCK <= src.width as i64;
-        let mut line = [0f32; BLOCK as usize];
-        for r in 0..rows {
-            let y = (top + r).clamp(0, src.height as i64 - 1) as usize;
+        for (r, line) in self.data.chunks_exact_mut(b).enumerate() {
+            let y = (top + r as i64).clamp(0, src.height as i64 - 1) as usize;
             if inside {
                 // A fixed-size copy, inlined: a memcpy call per row kept
                 // fewer of the rows' cache misses in flight.
                 let at = y * src.width + bx as usize;
-                line.copy_from_slice(&src.data[at..at + BLOCK as usize]);
+                let line: &mut [f32; BLOCK as usize] = line.try_into().expect("BLOCK wide");
+                line.copy_from_slice(&src.data[at..at + b]);
             } else {
-                src.copy_clamped(bx, y as i64, &mut line);
-            }
-            for (c, v) in line.iter().enumerate() {
-                self.data[c * rows as usize + r as usize] = *v;
+                src.copy_clamped(bx, y as i64, line);
             }
         }
         (self.x0, self.y0, self.rows) = (bx, top, rows);
     }
 
-    /// Column `x`, rows `[y, y + len)`, where the block holds them.
+    /// Columns `[x, x + width)`, rows `[y, y + rows)` as the block's slice
+    /// from (x, y) on, its rows [`BLOCK`] apart, where the block holds them.
     #[inline]
-    fn column(&self, x: i64, y: i64, len: usize) -> Option<&[f32]> {
+    fn rect(&self, x: i64, y: i64, width: usize, rows: usize) -> Option<&[f32]> {
         let (c, r) = (x - self.x0, y - self.y0);
-        let inside = (0..BLOCK).contains(&c) && r >= 0 && r + len as i64 <= self.rows;
+        let inside = c >= 0
+            && c + width as i64 <= BLOCK
+            && r >= 0
+            && r + rows as i64 <= self.rows
+            && rows > 0;
         inside.then(|| {
-            let at = (c * self.rows + r) as usize;
-            &self.data[at..at + len]
+            let at = (r * BLOCK + c) as usize;
+            &self.data[at..at + (rows - 1) * BLOCK as usize + width]
         })
     }
 }
 
-/// A level as a toroid's source: rows copied from the level, columns from
-/// its [`ColumnCache`] where it holds them.
+/// A level as a toroid's source: rows copied from the level, narrow
+/// rectangles from its [`ColumnCache`] where it holds them.
 pub struct LevelSource<'a> {
     pub level: &'a PyramidLevel,
     pub cache: &'a ColumnCache,
@@ -86,15 +92,37 @@ impl Source<f32> for LevelSource<'_> {
     fn row(&self, wx: i64, wy: i64, run: &mut [f32]) {
         self.level.copy_clamped(wx, wy, run);
     }
-    fn column(&self, wx: i64, wy: i64, column: Column<'_, f32>) {
-        match self.cache.column(wx, wy, column.len()) {
-            Some(c) => column.zip(c).for_each(|(d, s)| *d = *s),
-            None => {
-                for (i, d) in column.enumerate() {
-                    *d = self.level.get_clamped(wx, wy + i as i64);
+    fn narrow(&self, wx: i64, wy: i64, dst: Narrow<'_, f32>) {
+        let Some(block) = self.cache.rect(wx, wy, dst.width, dst.rows) else {
+            for j in 0..dst.rows {
+                let at = dst.at + j * dst.stride;
+                self.row(wx, wy + j as i64, &mut dst.data[at..at + dst.width]);
+            }
+            return;
+        };
+        let b = BLOCK as usize;
+        let out = &mut dst.data[dst.at..];
+        // One or two texels a row (a one-texel step, level 0's two): fixed
+        // widths, so each row is a load and a store, not a copy loop.
+        match dst.width {
+            1 => copy_runs::<1>(block, b, out, dst.stride, dst.rows),
+            2 => copy_runs::<2>(block, b, out, dst.stride, dst.rows),
+            w => {
+                for j in 0..dst.rows {
+                    out[j * dst.stride..j * dst.stride + w]
+                        .copy_from_slice(&block[j * b..j * b + w]);
                 }
             }
         }
+    }
+}
+
+/// `rows` runs of `W` texels from `src` (`from` apart) to `dst` (`to` apart).
+#[inline]
+fn copy_runs<const W: usize>(src: &[f32], from: usize, dst: &mut [f32], to: usize, rows: usize) {
+    for j in 0..rows {
+        let s: &[f32; W] = src[j * from..j * from + W].try_into().expect("W wide");
+        dst[j * to..j * to + W].copy_from_slice(s);
     }
 }
 
@@ -123,16 +151,19 @@ mod tests {
             cache.ensure(&lv, x, -10, 60);
             let bx = x.div_euclid(BLOCK) * BLOCK;
             for c in bx..bx + BLOCK {
-                let col = cache.column(c, -10, 70).expect("block covers the rows");
-                for (i, v) in col.iter().enumerate() {
+                let col = cache.rect(c, -10, 1, 70).expect("block covers the rows");
+                for i in 0..70 {
+                    let v = col[i * BLOCK as usize];
                     assert_eq!(v.to_bits(), lv.get_clamped(c, i as i64 - 10).to_bits());
                 }
             }
             // Outside the block or beyond its rows: not held.
-            assert!(cache.column(bx - 1, 0, 1).is_none());
-            assert!(cache.column(bx + BLOCK, 0, 1).is_none());
-            assert!(cache.column(bx, -10 - MARGIN - 1, 1).is_none());
-            assert!(cache.column(bx, 60 + MARGIN - 3, 4).is_none());
+            assert!(cache.rect(bx - 1, 0, 1, 1).is_none());
+            assert!(cache.rect(bx + BLOCK, 0, 1, 1).is_none());
+            assert!(cache.rect(bx + BLOCK - 1, 0, 2, 1).is_none());
+            assert!(cache.rect(bx, -10 - MARGIN - 1, 1, 1).is_none());
+            assert!(cache.rect(bx, 60 + MARGIN - 3, 1, 4).is_none());
+            assert!(cache.rect(bx, 0, 1, 0).is_none());
         }
     }
 
@@ -140,7 +171,7 @@ mod tests {
     fn ensure_refills_only_when_needed_and_clear_forgets() {
         let lv = level(100, 100);
         let mut cache = ColumnCache::default();
-        assert!(cache.column(0, 0, 1).is_none());
+        assert!(cache.rect(0, 0, 1, 1).is_none());
         cache.ensure(&lv, 33, 10, 40);
         let (x0, y0) = (cache.x0, cache.y0);
         // Same block, rows within the margin: kept.
@@ -150,6 +181,51 @@ mod tests {
         cache.ensure(&lv, 40, 10 - MARGIN - 1, 40);
         assert_eq!(cache.y0, 10 - 2 * MARGIN - 1);
         cache.clear();
-        assert!(cache.column(40, 10, 1).is_none());
+        assert!(cache.rect(40, 10, 1, 1).is_none());
+    }
+
+    #[test]
+    fn narrow_writes_equal_clamped_samples_with_and_without_the_block() {
+        let lv = level(70, 50);
+        let mut cache = ColumnCache::default();
+        cache.ensure(&lv, 40, 0, 30);
+        let stride = 9;
+        // Widths 1..=3 inside the block, one crossing its edge (read row by
+        // row), and rows past its margin.
+        for (wx, wy, width, rows) in [
+            (40, 0, 1, 30),
+            (41, -5, 2, 12),
+            (61, 3, 3, 7),
+            (63, 0, 2, 5),
+            (33, 50, 2, 20),
+        ] {
+            let src = LevelSource {
+                level: &lv,
+                cache: &cache,
+            };
+            let mut data = vec![f32::NAN; stride * rows + 4];
+            src.narrow(
+                wx,
+                wy,
+                Narrow {
+                    data: &mut data,
+                    at: 3,
+                    stride,
+                    width,
+                    rows,
+                },
+            );
+            for (k, v) in data.iter().enumerate() {
+                let (j, i) = (
+                    (k as i64 - 3).div_euclid(stride as i64),
+                    (k as i64 - 3).rem_euclid(stride as i64),
+                );
+                if k >= 3 && j < rows as i64 && i < width as i64 {
+                    assert_eq!(v.to_bits(), lv.get_clamped(wx + i, wy + j).to_bits());
+                } else {
+                    assert!(v.is_nan(), "wrote outside the rectangle at {k}");
+                }
+            }
+        }
     }
 }

@@ -224,7 +224,7 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
     /// Each rectangle is cut where the window's world coordinates wrap, so
     /// every piece maps to consecutive world cells and needs one modulo, not
     /// one per texel. Rectangles at most [`NARROW`] texels wide (an east or
-    /// west step) are written a column at a time, the others a row at a
+    /// west step) go to [`Source::narrow`] whole, the others a row at a
     /// time. Small updates (a one-texel step writes a row and a column) run
     /// on the calling thread, rectangle by rectangle; large ones in parallel
     /// over the rows they touch.
@@ -254,9 +254,15 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
                     }
                     if r.x1 - r.x0 <= NARROW {
                         for &(a, b, wx) in p {
-                            for x in a..b {
-                                let column = self.data[ya * s + x..].iter_mut().step_by(s);
-                                src.column(wx + (x - a) as i64, wy, column.take(yb - ya));
+                            if a < b {
+                                let dst = Narrow {
+                                    data: &mut self.data,
+                                    at: ya * s + a,
+                                    stride: s,
+                                    width: b - a,
+                                    rows: yb - ya,
+                                };
+                                src.narrow(wx, wy, dst);
                             }
                         }
                     } else {
@@ -285,22 +291,31 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
     }
 }
 
-/// Rectangles at most this wide are written a column at a time.
+/// Rectangles at most this wide go to [`Source::narrow`] whole.
 pub const NARROW: usize = 3;
 
-/// A toroid column being rewritten: its texels, n apart, top to bottom.
-pub type Column<'a, T> = std::iter::Take<std::iter::StepBy<std::slice::IterMut<'a, T>>>;
+/// A toroid rectangle at most [`NARROW`] texels wide being rewritten:
+/// `rows` runs of `width` texels, the first at `data[at..]`, each `stride`
+/// after the last (the toroid's rows).
+pub struct Narrow<'a, T> {
+    pub data: &'a mut [T],
+    pub at: usize,
+    pub stride: usize,
+    pub width: usize,
+    pub rows: usize,
+}
 
 /// Where a toroid's new texels come from.
 pub trait Source<T>: Sync {
     /// Writes world cells `(wx + i, wy)` into `run[i]`.
     fn row(&self, wx: i64, wy: i64, run: &mut [T]);
-    /// Writes world cells `(wx, wy + i)` into the i-th texel of `column`.
-    /// By default a row of one texel at a time; a source laid out in rows
-    /// does better from a copy of its columns (see `clipmap::columns`).
-    fn column(&self, wx: i64, wy: i64, column: Column<'_, T>) {
-        for (i, v) in column.enumerate() {
-            self.row(wx, wy + i as i64, std::slice::from_mut(v));
+    /// Writes world cells `(wx + i, wy + j)` into the j-th run of `dst`.
+    /// By default a row at a time; a source laid out in long rows does
+    /// better from a copy of the few columns (see `clipmap::columns`).
+    fn narrow(&self, wx: i64, wy: i64, dst: Narrow<'_, T>) {
+        for j in 0..dst.rows {
+            let at = dst.at + j * dst.stride;
+            self.row(wx, wy + j as i64, &mut dst.data[at..at + dst.width]);
         }
     }
 }
