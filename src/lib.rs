@@ -23,6 +23,7 @@ pub mod golden;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod heightmap;
+pub mod huge;
 pub mod lod;
 pub mod metrics;
 pub mod pyramid;

@@ -99,7 +99,7 @@ impl Procedural {
     /// parallel bands of [`BAND`] rows.
     pub fn generate(&self) -> Result<Heightmap, String> {
         self.validate()?;
-        let mut values = vec![0f32; self.width * self.height];
+        let mut values = crate::huge::filled(self.width * self.height, 0f32);
         values
             .par_chunks_mut(self.width * BAND)
             .enumerate()
