@@ -153,7 +153,21 @@ proptest! {
         cm.update(v);
         for (i, d) in steps.iter().enumerate() {
             v = [v[0] + d[0], v[1] + d[1]];
-            cm.update(v);
+            let before: Vec<_> = cm.levels().iter().map(|l| l.heights.origin()).collect();
+            let st = cm.update(v).clone();
+            // The statistics name exactly this step's rectangles: nothing
+            // left over from an earlier step (an update clears only the
+            // levels the last one wrote).
+            let mut total = 0;
+            for (l, lv) in cm.levels().iter().enumerate() {
+                let after = lv.heights.origin().expect("filled");
+                let want = update_rects(before[l], after, lv.heights.size());
+                let area: u64 = want.iter().map(|r| r.area() as u64).sum();
+                prop_assert_eq!(&st.rects_per_level[l][..], &want[..], "level {} step {}", l, i);
+                prop_assert_eq!(st.texels_per_level[l], area);
+                total += area;
+            }
+            prop_assert_eq!(st.texels_total, total);
             if i % 7 != 6 && i + 1 != steps.len() {
                 continue;
             }

@@ -271,10 +271,22 @@ impl Clipmap {
                 .all(|(lv, r)| lv.heights.origin() == Some(r.origin));
         let mut regions = std::mem::take(&mut self.regions);
         let mut stats = std::mem::take(&mut self.stats);
-        stats.texels_per_level.clear();
-        stats.texels_per_level.resize(count, 0);
-        stats.rects_per_level.clear();
-        stats.rects_per_level.resize(count, TexRects::default());
+        if stats.texels_per_level.len() == count && stats.rects_per_level.len() == count {
+            // Only the levels the last update wrote (at most a few after a
+            // step) hold anything to clear.
+            let last = stats
+                .texels_per_level
+                .iter_mut()
+                .zip(&mut stats.rects_per_level);
+            for (t, r) in last.filter(|(t, _)| **t != 0) {
+                (*t, *r) = (0, TexRects::default());
+            }
+        } else {
+            stats.texels_per_level.clear();
+            stats.texels_per_level.resize(count, 0);
+            stats.rects_per_level.clear();
+            stats.rects_per_level.resize(count, TexRects::default());
+        }
         stats.texels_total = 0;
         stats.levels_deferred = 0;
         stats.levels_unbuilt = 0;
@@ -292,10 +304,10 @@ impl Clipmap {
         let mut scale = 1.0f64;
         for l in 0..count {
             let lv = &mut self.levels[l];
-            // Read from the local copy: reading back the fields just stored
-            // stalls on store forwarding.
-            let r = regions[l];
-            let o = r.origin;
+            // Read from the local list: reading back the fields just stored
+            // stalls on store forwarding. Only the origin on a settled frame:
+            // copying the whole regions cost more than the rest of its loop.
+            let o = regions[l].origin;
             lv.morph.viewer = [
                 (clamped[0] * scale - o[0] as f64) as f32,
                 (clamped[1] * scale - o[1] as f64) as f32,
@@ -305,6 +317,7 @@ impl Clipmap {
                 // Regions, and so the rest of the morph constants, as before.
                 continue;
             }
+            let r = regions[l];
             lv.regions = r;
             lv.morph.enabled = self.cfg.morph
                 && l + 1 < count
