@@ -658,6 +658,12 @@ fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
         "full update n={} L={} on a {}-wide map ({} repeats): {:.3} ms after a jump ({:.3} ms on one thread), {:.3} ms for the same window again ({} texels)",
         u.n, u.levels, u.size, u.repeats, u.full_ms, u.full_one_core_ms, u.full_same_window_ms, u.full_texels
     );
+    println!(
+        "  its map: {} MB, {} MB of them on huge pages",
+        u.map_bytes >> 20,
+        u.map_huge_page_bytes
+            .map_or("?".into(), |b| (b >> 20).to_string())
+    );
     for w in &u.walks {
         let each: Vec<String> = w.overheads.iter().map(|o| format!("{o:.2}")).collect();
         println!(

@@ -102,6 +102,14 @@ pub struct UpdateRow {
     /// already in cache: the best a rebuild can do.
     pub full_same_window_ms: f64,
     pub full_texels: u64,
+    /// Bytes of the update map's pyramid (heights and no-data masks, all
+    /// levels), and how many of them the kernel put on huge pages (the
+    /// process's `AnonHugePages` grew by this much while it was built;
+    /// `null` off Linux). See `huge`: with them, a window's rows cost a
+    /// TLB entry per 2 MB instead of one per row, so a machine that grants
+    /// none reads slower walks.
+    pub map_bytes: u64,
+    pub map_huge_page_bytes: Option<u64>,
     /// Each repeat walks from its own start, on terrain the others did
     /// not read, with its own rebuilds; the walks' figures are medians.
     pub repeats: usize,
@@ -461,7 +469,12 @@ struct Repeat {
 /// One-texel-per-frame walks of 4 · 2^(L−1) frames (every level moves at
 /// least four times) against full rebuilds, repeated.
 fn update_test(opts: &Options) -> Result<UpdateRow> {
+    let huge_before = anon_huge_bytes();
     let pyramid = Arc::new(update_map(opts.update_n, opts.update_levels)?);
+    let map_huge_page_bytes = anon_huge_bytes()
+        .zip(huge_before)
+        .map(|(after, before)| after.saturating_sub(before));
+    let map_bytes = bytes(&pyramid).1;
     let (size, rows) = (pyramid.levels[0].width, pyramid.levels[0].height);
     let cfg = ClipmapConfig {
         n: opts.update_n,
@@ -584,6 +597,8 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         full_one_core_ms,
         full_same_window_ms: median(&same),
         full_texels,
+        map_bytes,
+        map_huge_page_bytes,
         repeats,
         walks,
     })
@@ -593,6 +608,15 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
 /// peak read later belongs to this measurement.
 fn reset_peak_rss() {
     let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+/// This process's anonymous memory on transparent huge pages, where the
+/// system reports it.
+fn anon_huge_bytes() -> Option<u64> {
+    let rollup = std::fs::read_to_string("/proc/self/smaps_rollup").ok()?;
+    let line = rollup.lines().find(|l| l.starts_with("AnonHugePages:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
 
 /// Peak resident memory (VmHWM), where the system reports it.

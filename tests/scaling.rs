@@ -84,6 +84,14 @@ fn scaling_report_figures() {
     );
     assert!(b1 > 3 * b0, "brute force: {b0} -> {b1}");
     assert_eq!(r.update.full_texels, 4 * 31 * 31);
+    // Heights (4 bytes) and no-data (1 byte) of every level of the map.
+    let map = scaling::update_map(31, 4).unwrap();
+    let bytes: u64 = map
+        .levels
+        .iter()
+        .map(|l| (l.width * l.height * 5) as u64)
+        .sum();
+    assert_eq!(r.update.map_bytes, bytes);
     assert!(r.update.full_ms > 0.0 && r.update.full_same_window_ms > 0.0);
     assert!(r.update.full_one_core_ms > 0.0);
     assert_eq!((r.update.repeats, r.update.walks.len()), (3, 2));
