@@ -12,7 +12,7 @@
 //! it to columns stored 32 scattered texels per row and stalled on them.
 //! The values are copies, so the toroid's bits do not change.
 
-use super::toroid::{Narrow, Source};
+use super::toroid::{narrow_by_rows, Narrow, Source};
 use crate::pyramid::PyramidLevel;
 
 /// Columns per block: two 64-byte lines of f32s (the second comes nearly
@@ -94,11 +94,7 @@ impl Source<f32> for LevelSource<'_> {
     }
     fn narrow(&self, wx: i64, wy: i64, dst: Narrow<'_, f32>) {
         let Some(block) = self.cache.rect(wx, wy, dst.width, dst.rows) else {
-            for j in 0..dst.rows {
-                let at = dst.at + j * dst.stride;
-                self.row(wx, wy + j as i64, &mut dst.data[at..at + dst.width]);
-            }
-            return;
+            return narrow_by_rows(self, wx, wy, dst);
         };
         let b = BLOCK as usize;
         let out = &mut dst.data[dst.at..];

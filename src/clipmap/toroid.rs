@@ -313,10 +313,16 @@ pub trait Source<T>: Sync {
     /// By default a row at a time; a source laid out in long rows does
     /// better from a copy of the few columns (see `clipmap::columns`).
     fn narrow(&self, wx: i64, wy: i64, dst: Narrow<'_, T>) {
-        for j in 0..dst.rows {
-            let at = dst.at + j * dst.stride;
-            self.row(wx, wy + j as i64, &mut dst.data[at..at + dst.width]);
-        }
+        narrow_by_rows(self, wx, wy, dst);
+    }
+}
+
+/// [`Source::narrow`] a row at a time through [`Source::row`]: the default,
+/// and what a source with a faster way falls back to where it has none.
+pub fn narrow_by_rows<T, S: Source<T> + ?Sized>(src: &S, wx: i64, wy: i64, dst: Narrow<'_, T>) {
+    for j in 0..dst.rows {
+        let at = dst.at + j * dst.stride;
+        src.row(wx, wy + j as i64, &mut dst.data[at..at + dst.width]);
     }
 }
 
