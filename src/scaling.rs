@@ -613,16 +613,18 @@ fn reset_peak_rss() {
 /// This process's anonymous memory on transparent huge pages, where the
 /// system reports it.
 fn anon_huge_bytes() -> Option<u64> {
-    let rollup = std::fs::read_to_string("/proc/self/smaps_rollup").ok()?;
-    let line = rollup.lines().find(|l| l.starts_with("AnonHugePages:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    proc_kb("/proc/self/smaps_rollup", "AnonHugePages:")
 }
 
 /// Peak resident memory (VmHWM), where the system reports it.
 fn peak_rss() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    proc_kb("/proc/self/status", "VmHWM:")
+}
+
+/// The "`key` N kB" line of a /proc file, in bytes.
+fn proc_kb(path: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(path).ok()?;
+    let line = text.lines().find(|l| l.starts_with(key))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }

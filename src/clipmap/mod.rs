@@ -341,10 +341,10 @@ impl Clipmap {
 
     /// Starts loading the source rows the next update will copy if the
     /// viewer repeats its last vertical step, so that copy finds them in
-    /// cache. (Column blocks are not prefetched: each of their rows is
-    /// another page walk, which made east walks slower.) Only for small
-    /// steps and a complete pyramid (a lazy one may not have built them).
-    /// A hint: no value changes.
+    /// cache. (Column blocks are not prefetched: a slice of the next block
+    /// per step made east walks slower, on small pages and on huge ones
+    /// alike.) Only for small steps and a complete pyramid (a lazy one may
+    /// not have built them). A hint: no value changes.
     fn prefetch_ahead(&self, previous: [f64; 2], viewer: [f64; 2]) {
         let d = [viewer[0] - previous[0], viewer[1] - previous[1]];
         let small = d.iter().all(|c| c.abs() <= 8.0) && d != [0.0, 0.0];

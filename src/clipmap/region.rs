@@ -195,12 +195,7 @@ pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegio
     out.clear();
     let mut o = level0_origin(p, viewer);
     for l in 0..p.levels {
-        out.push(LevelRegions {
-            origin: o,
-            clip: clip_of(p.n, o, l),
-            active: None,
-            map_sides: [false; 4],
-        });
+        out.push(unactivated(p.n, o, l));
         o = coarser_origin(o, block_size(p.n));
     }
     activate(p, out, p.levels);
@@ -220,21 +215,23 @@ pub fn update_into(p: &RegionParams, viewer: [f64; 2], out: &mut [LevelRegions])
             // Coarser origins follow from this one, so they stay put too.
             break;
         }
-        *r = LevelRegions {
-            origin: o,
-            clip: clip_of(p.n, o, l),
-            active: None,
-            map_sides: [false; 4],
-        };
+        *r = unactivated(p.n, o, l);
         moved = l + 1;
         o = coarser_origin(o, block_size(p.n));
     }
     activate(p, out, moved);
 }
 
-fn clip_of(n: i64, o: [i64; 2], l: usize) -> Rect {
+/// Level `l`'s regions for window origin `o` before [`activate`] sets its
+/// active region: its clip region, in base vertices.
+fn unactivated(n: i64, o: [i64; 2], l: usize) -> LevelRegions {
     let g = 1i64 << l;
-    Rect::new(o[0] * g, o[1] * g, (o[0] + n - 1) * g, (o[1] + n - 1) * g)
+    LevelRegions {
+        origin: o,
+        clip: Rect::new(o[0] * g, o[1] * g, (o[0] + n - 1) * g, (o[1] + n - 1) * g),
+        active: None,
+        map_sides: [false; 4],
+    }
 }
 
 /// Active regions of levels `[0, upto)`, coarse to fine, from their clip

@@ -184,7 +184,7 @@ impl PyramidLevel {
 
 /// Asks the processor to start loading the cache lines under `run`. A hint
 /// only: no value changes, and it does nothing off x86-64.
-pub fn prefetch_run(run: &[f32]) {
+fn prefetch_run(run: &[f32]) {
     // One touch per 64-byte line, and the last texel for a line the stride
     // steps over.
     let last = run.len().saturating_sub(1);
