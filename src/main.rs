@@ -667,8 +667,8 @@ fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
     for w in &u.walks {
         let each: Vec<String> = w.overheads.iter().map(|o| format!("{o:.2}")).collect();
         println!(
-            "  walk {:<5} {:.4} ms/frame ({:.0} texels): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2; repeats {}), against one thread {:.2}",
-            w.direction, w.incremental_ms, w.incremental_texels, w.time_ratio, w.texel_ratio, w.overhead, each.join(" "), w.overhead_one_core
+            "  walk {:<10} {:.3} us/frame ({:.0} texels, {:.1} column rows): time ratio {:.5}, texel ratio {:.5}, overhead {:.2} (target <= 1.2; repeats {}), against one thread {:.2}",
+            w.direction, w.incremental_ms * 1e3, w.incremental_texels, w.column_rows, w.time_ratio, w.texel_ratio, w.overhead, each.join(" "), w.overhead_one_core
         );
     }
     let m = &r.memory;

@@ -113,7 +113,8 @@ pub struct UpdateRow {
     /// Each repeat walks from its own start, on terrain the others did
     /// not read, with its own rebuilds; the walks' figures are medians.
     pub repeats: usize,
-    /// Walks east (each level writes columns) and south (rows).
+    /// Walks east (each level writes columns), south (rows) and
+    /// south-east (both; coarse levels often move one way in a frame).
     pub walks: Vec<Walk>,
 }
 
@@ -125,6 +126,10 @@ pub struct Walk {
     /// Mean per frame (median of the repeats).
     pub incremental_ms: f64,
     pub incremental_texels: f64,
+    /// Source rows copied into column blocks per frame (median of the
+    /// repeats; see `clipmap::columns`): the fresh reads a walk makes
+    /// beyond its texels, counted rather than timed.
+    pub column_rows: f64,
     /// incremental_ms ÷ full_ms.
     pub time_ratio: f64,
     pub texel_ratio: f64,
@@ -462,6 +467,7 @@ fn update_dims(n: i64, levels: usize) -> Result<(usize, usize)> {
 struct Repeat {
     ms: f64,
     texels: f64,
+    column_rows: f64,
     full_ms: f64,
     one_core_ms: f64,
 }
@@ -520,7 +526,11 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
     // decide the mean.
     let frames = 4usize << (opts.update_levels - 1);
     let chunks = frames.min(8);
-    let dirs = [("east", [1.0, 0.0]), ("south", [0.0, 1.0])];
+    let dirs = [
+        ("east", [1.0, 0.0]),
+        ("south", [0.0, 1.0]),
+        ("south-east", [1.0, 1.0]),
+    ];
     let (mut all_full, mut all_one) = (Vec::new(), Vec::new());
     let mut runs: Vec<Vec<Repeat>> = vec![Vec::new(); dirs.len()];
     let mut k = 0;
@@ -534,15 +544,15 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
         ];
         for (run, (_, d)) in runs.iter_mut().zip(dirs) {
             walker.update(start);
-            let (mut ms, mut texels) = (0.0, 0u64);
+            let (mut ms, mut texels, mut column_rows) = (0.0, 0u64, 0u64);
             let (mut full, mut single) = (Vec::new(), Vec::new());
             for c in 0..chunks {
                 let t = Instant::now();
                 for f in c * frames / chunks + 1..=(c + 1) * frames / chunks {
                     let f = f as f64;
-                    texels += walker
-                        .update([start[0] + f * d[0], start[1] + f * d[1]])
-                        .texels_total;
+                    let st = walker.update([start[0] + f * d[0], start[1] + f * d[1]]);
+                    texels += st.texels_total;
+                    column_rows += st.column_rows_copied;
                 }
                 ms += t.elapsed().as_secs_f64() * 1e3;
                 full.push(rebuild(jump(k), false));
@@ -554,6 +564,7 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
             run.push(Repeat {
                 ms: ms / frames as f64,
                 texels: texels as f64 / frames as f64,
+                column_rows: column_rows as f64 / frames as f64,
                 full_ms: median(&full),
                 one_core_ms: median(&single),
             });
@@ -576,11 +587,13 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
             let ms: Vec<f64> = run.iter().map(|x| x.ms).collect();
             let texels: Vec<f64> = run.iter().map(|x| x.texels).collect();
             let (incremental_ms, incremental_texels) = (median(&ms), median(&texels));
+            let rows: Vec<f64> = run.iter().map(|x| x.column_rows).collect();
             Walk {
                 direction,
                 frames,
                 incremental_ms,
                 incremental_texels,
+                column_rows: median(&rows),
                 time_ratio: incremental_ms / full_ms,
                 texel_ratio: incremental_texels / all,
                 overhead: median(&overheads),

@@ -94,7 +94,12 @@ fn scaling_report_figures() {
     assert_eq!(r.update.map_bytes, bytes);
     assert!(r.update.full_ms > 0.0 && r.update.full_same_window_ms > 0.0);
     assert!(r.update.full_one_core_ms > 0.0);
-    assert_eq!((r.update.repeats, r.update.walks.len()), (3, 2));
+    assert_eq!((r.update.repeats, r.update.walks.len()), (3, 3));
+    let dirs: Vec<_> = r.update.walks.iter().map(|w| w.direction).collect();
+    assert_eq!(dirs, ["east", "south", "south-east"]);
+    // Rows write no columns, so copy no column blocks; the other walks do.
+    let rows: Vec<_> = r.update.walks.iter().map(|w| w.column_rows).collect();
+    assert!(rows[0] > 0.0 && rows[1] == 0.0 && rows[2] > 0.0, "{rows:?}");
     for w in &r.update.walks {
         assert_eq!(w.frames, 32);
         assert_eq!(w.overheads.len(), 3);

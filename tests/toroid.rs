@@ -3,6 +3,7 @@
 
 mod common;
 use proptest::prelude::*;
+use terraclip::clipmap::columns::{BLOCK, MARGIN, MIN_MARGIN};
 use terraclip::clipmap::toroid::{update_rects, Toroid};
 use terraclip::clipmap::Layout;
 
@@ -213,4 +214,51 @@ fn texel_budget_updates_coarse_to_fine_and_deactivates_the_rest() {
     let st = cm.update([250.0, 250.0]);
     assert_eq!(st.texels_per_level, vec![961, 961, 0, 0]);
     assert!(cm.levels().iter().all(|l| l.is_active()));
+}
+
+/// Walks of 256 one-texel frames copy each level's column blocks about
+/// once per [`BLOCK`] columns travelled: with the least margin on a side
+/// the window does not drift to, the full one on a side it does, and at
+/// most one refill per level for that drift. A level that moves only
+/// vertically in a frame (coarse levels of a diagonal walk, every other
+/// step) keeps its block: refilling it there copied 2.5 times the rows.
+#[test]
+fn walks_copy_each_column_block_about_once() {
+    let frames = 256u64;
+    for (name, dir) in [
+        ("east", [1.0, 0.0]),
+        ("diagonal", [1.0, 1.0]),
+        ("west and south", [-1.0, 0.5]),
+    ] {
+        let mut cm = base_clipmap();
+        let start = [37.0, 61.0];
+        cm.update(start);
+        let mut rows = 0;
+        for f in 1..=frames {
+            let v = [start[0] + dir[0] * f as f64, start[1] + dir[1] * f as f64];
+            rows += cm.update(v).column_rows_copied;
+        }
+        let n = cm.levels()[0].heights.size() as u64;
+        let (block, margin, least) = (BLOCK as u64, MARGIN as u64, MIN_MARGIN as u64);
+        // Blocks a level enters: its columns travelled over BLOCK, plus the
+        // one it starts in and one it may end in.
+        let blocks = |l: usize| (frames >> l) / block + 2;
+        // Each level's first block has both full margins (no motion known).
+        let first = n + 2 * margin;
+        let levels = 0..cm.levels().len();
+        let bound: u64 = if name == "east" {
+            levels
+                .map(|l| first + (blocks(l) - 1) * (n + 2 * least))
+                .sum()
+        } else {
+            levels
+                .map(|l| first + blocks(l) * (n + margin + least))
+                .sum()
+        };
+        assert!(rows > 0, "{name}: no column block copied");
+        assert!(
+            rows <= bound,
+            "{name}: {rows} rows copied, at most {bound} expected"
+        );
+    }
 }

@@ -18,9 +18,14 @@ use crate::pyramid::PyramidLevel;
 /// Columns per block: two 64-byte lines of f32s (the second comes nearly
 /// free with the first; wider blocks measured no better).
 pub const BLOCK: i64 = 32;
-/// Rows kept beyond the window on either side, so a diagonal walk reuses a
+/// Rows kept beyond the window on either side when the window's vertical
+/// motion is unknown (a block's first fill), so a diagonal walk reuses a
 /// block for this many rows of drift.
-const MARGIN: i64 = 32;
+pub const MARGIN: i64 = 32;
+/// Rows always kept beyond the window once its motion is known: a walk
+/// that has not drifted vertically pays for these few, not for
+/// [`MARGIN`] on both sides (a fifth of the rows a block reads).
+pub const MIN_MARGIN: i64 = 4;
 
 /// Columns `[x0, x0 + BLOCK)` × rows `[y0, y0 + rows)` of one level, sampled
 /// with clamping like [`PyramidLevel::get_clamped`], row by row.
@@ -29,6 +34,10 @@ pub struct ColumnCache {
     x0: i64,
     y0: i64,
     rows: i64,
+    /// The window's first row when the block was filled: the next fill
+    /// takes the drift since then as the coming one, and keeps its margin
+    /// on that side.
+    filled_at: Option<i64>,
     data: Vec<f32>,
 }
 
@@ -36,16 +45,32 @@ impl ColumnCache {
     /// Forgets the block (the source changed).
     pub fn clear(&mut self) {
         self.rows = 0;
+        self.filled_at = None;
+    }
+
+    /// Rows to keep above and below window rows starting at `y0`: the full
+    /// [`MARGIN`] on the side the window drifted to since the last fill,
+    /// [`MIN_MARGIN`] on a side it did not.
+    fn margins(&self, y0: i64) -> (i64, i64) {
+        match self.filled_at {
+            None => (MARGIN, MARGIN),
+            Some(at) => {
+                let drift = y0 - at;
+                let side = |toward: bool| if toward { MARGIN } else { MIN_MARGIN };
+                (side(drift < 0), side(drift > 0))
+            }
+        }
     }
 
     /// Makes sure the block holding column `x` covers rows `[y0, y1)`,
-    /// copying it from `src` if not.
-    pub fn ensure(&mut self, src: &PyramidLevel, x: i64, y0: i64, y1: i64) {
+    /// copying it from `src` if not; returns the rows copied.
+    pub fn ensure(&mut self, src: &PyramidLevel, x: i64, y0: i64, y1: i64) -> u64 {
         let bx = x.div_euclid(BLOCK) * BLOCK;
         if self.rows > 0 && bx == self.x0 && y0 >= self.y0 && y1 <= self.y0 + self.rows {
-            return;
+            return 0;
         }
-        let (top, rows) = (y0 - MARGIN, y1 - y0 + 2 * MARGIN);
+        let (above, below) = self.margins(y0);
+        let (top, rows) = (y0 - above, y1 - y0 + above + below);
         let b = BLOCK as usize;
         self.data.resize(b * rows as usize, 0.0);
         let inside = bx >= 0 && bx + BLOCK <= src.width as i64;
@@ -62,6 +87,8 @@ impl ColumnCache {
             }
         }
         (self.x0, self.y0, self.rows) = (bx, top, rows);
+        self.filled_at = Some(y0);
+        rows as u64
     }
 
     /// Columns `[x, x + width)`, rows `[y, y + rows)` as the block's slice
@@ -173,11 +200,46 @@ mod tests {
         // Same block, rows within the margin: kept.
         cache.ensure(&lv, 40, 10 - MARGIN, 40);
         assert_eq!((cache.x0, cache.y0), (x0, y0));
-        // Rows past the margin: refilled around them.
+        // Rows past the margin: refilled around them, with the full margin
+        // above (the window drifted up) and the least below.
         cache.ensure(&lv, 40, 10 - MARGIN - 1, 40);
         assert_eq!(cache.y0, 10 - 2 * MARGIN - 1);
+        assert_eq!(cache.rows, 30 + 2 * MARGIN + 1 + MIN_MARGIN);
         cache.clear();
         assert!(cache.rect(40, 10, 1, 1).is_none());
+    }
+
+    #[test]
+    fn margins_follow_the_window_drift_since_the_last_fill() {
+        let lv = level(400, 300);
+        let mut cache = ColumnCache::default();
+        // Unknown motion: the full margin on both sides.
+        cache.ensure(&lv, 0, 100, 150);
+        assert_eq!((cache.y0, cache.rows), (100 - MARGIN, 50 + 2 * MARGIN));
+        // A straight walk east: the next blocks keep only MIN_MARGIN.
+        for b in 1..4 {
+            cache.ensure(&lv, b * BLOCK, 100, 150);
+            assert_eq!(
+                (cache.y0, cache.rows),
+                (100 - MIN_MARGIN, 50 + 2 * MIN_MARGIN)
+            );
+        }
+        // Drifting down: the full margin below, the least above.
+        for b in 4..7 {
+            let y = 100 + 10 * (b - 3);
+            cache.ensure(&lv, b * BLOCK, y, y + 50);
+            assert_eq!(
+                (cache.y0, cache.rows),
+                (y - MIN_MARGIN, 50 + MIN_MARGIN + MARGIN)
+            );
+        }
+        // Turning up: the full margin above.
+        cache.ensure(&lv, 7 * BLOCK, 0, 50);
+        assert_eq!((cache.y0, cache.rows), (-MARGIN, 50 + MARGIN + MIN_MARGIN));
+        // Forgetting the block forgets the motion too.
+        cache.clear();
+        cache.ensure(&lv, 8 * BLOCK, 0, 50);
+        assert_eq!((cache.y0, cache.rows), (-MARGIN, 50 + 2 * MARGIN));
     }
 
     #[test]

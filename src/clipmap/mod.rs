@@ -77,6 +77,9 @@ pub struct UpdateStats {
     pub levels_unbuilt: usize,
     /// Pyramid samples a lazy pyramid built for this update.
     pub pyramid_samples: u64,
+    /// Source rows copied into column blocks ([`columns::BLOCK`] texels
+    /// each) for east and west steps: a walk's cost in fresh source reads.
+    pub column_rows_copied: u64,
 }
 
 /// A mesh vertex after the vertex stage: base-grid position and heights.
@@ -291,6 +294,7 @@ impl Clipmap {
         stats.levels_deferred = 0;
         stats.levels_unbuilt = 0;
         stats.pyramid_samples = 0;
+        stats.column_rows_copied = 0;
         if !settled {
             if pristine {
                 region::update_into(&self.params, viewer, &mut regions);
@@ -419,12 +423,17 @@ impl Clipmap {
                 r.x1 - r.x0 <= toroid::NARROW && r.y1 - r.y0 > toroid::NARROW
             };
             // Only a finished pyramid: a lazy one's columns beyond the
-            // window may not be built yet.
+            // window may not be built yet. A finished one never changes,
+            // so a step without a column (a level moving only vertically
+            // this frame, as coarse levels of a diagonal walk do every
+            // other step) keeps its block for the next one.
             match rects.iter().find(tall) {
                 Some(r) if complete => {
                     let x = toroid::Toroid::<f32>::world_of(r.x0, origin[0], self.n as usize);
-                    lv.columns.ensure(src, x, origin[1], origin[1] + self.n);
+                    stats.column_rows_copied +=
+                        lv.columns.ensure(src, x, origin[1], origin[1] + self.n);
                 }
+                _ if complete => {}
                 _ => lv.columns.clear(),
             }
             stats.texels_per_level[l] = needed;
