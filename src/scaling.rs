@@ -584,16 +584,15 @@ fn update_test(opts: &Options) -> Result<UpdateRow> {
                     .collect()
             };
             let (overheads, one_core) = (over(|x| x.full_ms), over(|x| x.one_core_ms));
-            let ms: Vec<f64> = run.iter().map(|x| x.ms).collect();
-            let texels: Vec<f64> = run.iter().map(|x| x.texels).collect();
-            let (incremental_ms, incremental_texels) = (median(&ms), median(&texels));
-            let rows: Vec<f64> = run.iter().map(|x| x.column_rows).collect();
+            let median_of = |f: fn(&Repeat) -> f64| median(&run.iter().map(f).collect::<Vec<_>>());
+            let (incremental_ms, incremental_texels) =
+                (median_of(|x| x.ms), median_of(|x| x.texels));
             Walk {
                 direction,
                 frames,
                 incremental_ms,
                 incremental_texels,
-                column_rows: median(&rows),
+                column_rows: median_of(|x| x.column_rows),
                 time_ratio: incremental_ms / full_ms,
                 texel_ratio: incremental_texels / all,
                 overhead: median(&overheads),

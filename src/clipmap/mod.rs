@@ -427,14 +427,12 @@ impl Clipmap {
             // so a step without a column (a level moving only vertically
             // this frame, as coarse levels of a diagonal walk do every
             // other step) keeps its block for the next one.
-            match rects.iter().find(tall) {
-                Some(r) if complete => {
-                    let x = toroid::Toroid::<f32>::world_of(r.x0, origin[0], self.n as usize);
-                    stats.column_rows_copied +=
-                        lv.columns.ensure(src, x, origin[1], origin[1] + self.n);
-                }
-                _ if complete => {}
-                _ => lv.columns.clear(),
+            if !complete {
+                lv.columns.clear();
+            } else if let Some(r) = rects.iter().find(tall) {
+                let x = toroid::Toroid::<f32>::world_of(r.x0, origin[0], self.n as usize);
+                stats.column_rows_copied +=
+                    lv.columns.ensure(src, x, origin[1], origin[1] + self.n);
             }
             stats.texels_per_level[l] = needed;
             stats.texels_total += needed;
