@@ -155,16 +155,16 @@ fn main() {
                 // Each walk and each rebuild on terrain not read before.
                 let start = [1000 + r * 977 % 7000, 1200 + r * 613 % 7000];
                 m.rebuild(start);
+                let at = |f: usize| [start[0] + f * d[0], start[1] + f * d[1]];
                 let t = Instant::now();
                 for f in 1..=FRAMES {
-                    let at = |f: usize| [start[0] + f * d[0], start[1] + f * d[1]];
                     texels += m.step(at(f - 1), at(f));
                 }
                 walks.push(t.elapsed().as_secs_f64() * 1e6 / FRAMES as f64);
                 // The model is only a bound if it writes what a rebuild
                 // would: every toroid must equal one rebuilt where it ended.
                 let walked = m.toroids.clone();
-                m.rebuild([start[0] + FRAMES * d[0], start[1] + FRAMES * d[1]]);
+                m.rebuild(at(FRAMES));
                 assert!(walked == m.toroids, "{name} walk differs from a rebuild");
                 for k in 0..3 {
                     let i = r * 3 + k;

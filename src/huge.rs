@@ -16,9 +16,19 @@ const MIN_BYTES: usize = 4 << 20;
 /// first touch (advice given after the pages exist only applies when the
 /// kernel collapses them later, if ever).
 pub fn filled<T: Copy>(len: usize, value: T) -> Vec<T> {
-    let mut v = Vec::with_capacity(len);
-    advise(v.as_mut_ptr() as *mut u8, len * std::mem::size_of::<T>());
-    v.resize(len, value);
+    collect(std::iter::repeat_n(value, len))
+}
+
+/// The items of `iter` in memory advised like [`filled`]'s: each texel is
+/// written once, where filling first and then overwriting wrote a large
+/// map twice.
+pub fn collect<T, I: ExactSizeIterator<Item = T>>(iter: I) -> Vec<T> {
+    let mut v = Vec::with_capacity(iter.len());
+    advise(
+        v.as_mut_ptr() as *mut u8,
+        iter.len() * std::mem::size_of::<T>(),
+    );
+    v.extend(iter);
     v
 }
 
@@ -56,7 +66,10 @@ mod tests {
             assert_eq!(v.len(), len);
             assert!(v.iter().all(|&x| x.to_bits() == 2.5f32.to_bits()));
         }
-        let b = filled((MIN_BYTES) + 3, true);
+        let b = filled(MIN_BYTES + 3, true);
         assert!(b.iter().all(|&x| x));
+        let n = MIN_BYTES / 4 * 3 + 17;
+        let c = collect((0..n).map(|i| i as u32));
+        assert!(c.len() == n && c.iter().enumerate().all(|(i, &x)| x == i as u32));
     }
 }

@@ -425,11 +425,8 @@ fn centred_camera(
 /// same whatever its value.
 pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
     let (w, h) = update_dims(n, levels)?;
-    let mut values = crate::huge::filled(w * h, 0f32);
-    values
-        .iter_mut()
-        .enumerate()
-        .for_each(|(i, v)| *v = ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0);
+    let values =
+        crate::huge::collect((0..w * h).map(|i| ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0));
     let map = crate::heightmap::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
         .map_err(|r| Error::value("scaling.update", r))?;
     Ok(Pyramid::from_heightmap(

@@ -85,11 +85,7 @@ impl Heightmap {
             ));
         }
         let is_nodata = |v: f32| !v.is_finite() || nodata_value == Some(v);
-        let mut nodata = crate::huge::filled(values.len(), false);
-        nodata
-            .iter_mut()
-            .zip(&values)
-            .for_each(|(nd, &v)| *nd = is_nodata(v));
+        let nodata = crate::huge::collect(values.iter().map(|&v| is_nodata(v)));
         let nodata_count = nodata.iter().filter(|&&b| b).count();
         let fill = values
             .iter()
