@@ -47,6 +47,11 @@ impl Error {
 
 /// Writes `bytes` to `path` through a temporary file in the same folder and a
 /// rename, so a reader never sees a half-written output or golden.
+///
+/// With `TERRACLIP_TEST_STALL_WRITE_MS=N` set, the write stops for N ms
+/// after the first half of the bytes is on disk: the hook that lets
+/// `tests/inputs.rs` kill a process while its output is half-written, which
+/// no timing could otherwise hit reliably.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let dir = match path.parent() {
@@ -63,7 +68,18 @@ pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     ));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
+        let stall = std::env::var("TERRACLIP_TEST_STALL_WRITE_MS")
+            .ok()
+            .and_then(|v| v.parse::<u64>().ok());
+        if let Some(ms) = stall {
+            let (head, tail) = bytes.split_at(bytes.len() / 2);
+            f.write_all(head)?;
+            f.flush()?;
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+            f.write_all(tail)?;
+        } else {
+            f.write_all(bytes)?;
+        }
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();

@@ -813,6 +813,7 @@ fn fly_cmd(
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    terraclip::raster::Path::check_env().map_err(anyhow::Error::msg)?;
     match cli.cmd {
         Some(Cmd::Golden {
             dir,

@@ -69,6 +69,10 @@ pub struct RenderStats {
     /// With `pyramid.lazy`: what the pyramid has built (absent otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lazy: Option<LazyFrame>,
+    /// The CPU raster and shading build that ran ([`crate::raster::Path::label`]:
+    /// `scalar`, `portable` or `avx2+fma`); absent for the GPU back end.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub raster_path: Option<&'static str>,
 }
 
 /// A lazy pyramid after a frame.
@@ -296,6 +300,7 @@ pub fn stats(
         lightmap_rays: frame.resources.lightmap.as_ref().map_or(0, |l| l.rays),
         normals_computed,
         lazy: None,
+        raster_path: None,
     }
 }
 
@@ -319,6 +324,7 @@ impl Session {
         let (image, raster) = draw(&frame, opts, &mut passes);
         let mut s = stats(&frame, "cpu", raster, passes);
         s.lazy = self.lazy_frame(clip.as_ref());
+        s.raster_path = Some(opts.path.label());
         Ok((image, s))
     }
 

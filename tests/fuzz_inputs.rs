@@ -3,7 +3,12 @@
 //! and scene files are truncated, bit-flipped, given absurd header sizes
 //! (decompression bombs), NaN/inf/no-data patterns and wrong types. Every
 //! case must either load, or fail with a typed error that names the file;
-//! none may panic. The run prints its case count and time (README "Hard
+//! none may panic. A map that loads must hold only finite heights where it
+//! has data, with its no-data count equal to its mask; a scene that parses
+//! must build and render (at its own 32×24) without a panic, or fail with
+//! an error that names it. The seeded run's split of loaded and rejected
+//! cases per kind is asserted exactly, so a reader that starts accepting
+//! what it used to reject (or the reverse) fails here. The run prints its case count and time (README "Hard
 //! cases we test").
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -195,12 +200,13 @@ width = 32
 height = 24
 "#;
 
-/// Loads `path`; Ok(true) loaded, Ok(false) clean error naming the file,
-/// Err on a panic or an error that does not name the file.
+/// Loads `path`; Ok(true) loaded (and the map is sound), Ok(false) clean
+/// error naming the file, Err on a panic, an error that does not name the
+/// file, or a loaded map with a non-finite height or a miscounted mask.
 fn load_once(path: &Path) -> Result<bool, String> {
     match catch_unwind(AssertUnwindSafe(|| Heightmap::load(path))) {
         Err(_) => Err(format!("panic on {}", path.display())),
-        Ok(Ok(_)) => Ok(true),
+        Ok(Ok(m)) => sound(&m, &path.display().to_string()).map(|()| true),
         Ok(Err(e)) => {
             let msg = e.to_string();
             let name = path.file_name().unwrap().to_string_lossy().to_string();
@@ -213,15 +219,89 @@ fn load_once(path: &Path) -> Result<bool, String> {
     }
 }
 
+/// A loaded map: as many values and mask entries as texels, every value
+/// finite (no-data texels hold a finite fill, which the pyramid's filters
+/// may read at zero weight), and `nodata_count` the mask's true entries.
+fn sound(m: &Heightmap, name: &str) -> Result<(), String> {
+    let (data, mask) = (m.data(), m.nodata_mask());
+    let texels = m.width() * m.height();
+    if data.len() != texels || (!mask.is_empty() && mask.len() != texels) {
+        return Err(format!(
+            "{name}: {} values and {} mask entries for {texels} texels",
+            data.len(),
+            mask.len()
+        ));
+    }
+    let masked = mask.iter().filter(|&&b| b).count();
+    if masked != m.nodata_count() {
+        return Err(format!(
+            "{name}: nodata_count {} but {masked} masked texels",
+            m.nodata_count()
+        ));
+    }
+    let bad = data.iter().filter(|v| !v.is_finite()).count();
+    if bad > 0 {
+        return Err(format!("{name}: {bad} non-finite values"));
+    }
+    Ok(())
+}
+
+/// Parses, builds and renders a scene; Ok(true) rendered, Ok(false) a clean
+/// error that names the scene, Err otherwise.
+fn scene_once(text: &str, d: &Path) -> Result<bool, String> {
+    let r = catch_unwind(AssertUnwindSafe(|| {
+        let s = Scene::parse(text, "fuzz.toml", d)?;
+        let (img, stats) = terraclip::render::render(&s, &Default::default())?;
+        Ok::<_, terraclip::Error>((img, stats))
+    }));
+    match r {
+        Err(_) => Err(format!("panic on scene:\n{text}")),
+        Ok(Ok((img, stats))) => {
+            let want = (img.width * img.height) as usize;
+            if img.rgba.len() != 4 * want || stats.non_finite.raster > 0 {
+                return Err(format!("scene rendered badly ({stats:?}):\n{text}"));
+            }
+            Ok(true)
+        }
+        Ok(Err(e)) if e.to_string().contains("fuzz.toml") => Ok(false),
+        Ok(Err(e)) => Err(format!("scene error does not name the file: {e}\n{text}")),
+    }
+}
+
+/// How many cases of each kind load in the seeded run (the rest are clean
+/// errors), measured once and checked exactly.
+const EXPECTED_LOADED: &[(&str, usize)] = &[
+    ("seed 0 (png)", 145),
+    ("seed 1 (png)", 174),
+    ("seed 2 (tga)", 896),
+    ("seed 3 (tif)", 614),
+    ("seed 4 (tif)", 544),
+    ("asc", 147),
+    ("raw f32 + sidecar", 334),
+    ("scene", 105),
+];
+
 #[test]
 fn ten_thousand_malformed_inputs_never_panic() {
     let d = dir();
     let start = Instant::now();
     let mut rng = Rng(0x5EED_F00D_1234_5678);
     let (mut cases, mut loaded, mut failures) = (0usize, 0usize, vec![]);
-    let mut record = |r: Result<bool, String>| match r {
-        Ok(l) => loaded += usize::from(l),
-        Err(e) => failures.push(e),
+    // Loaded cases per kind, in the order the kinds run.
+    let mut split: Vec<(String, usize, usize)> = vec![];
+    let mut record = |kind: &str, r: Result<bool, String>| {
+        if split.last().is_none_or(|k| k.0 != kind) {
+            split.push((kind.to_string(), 0, 0));
+        }
+        let k = split.last_mut().unwrap();
+        k.1 += 1;
+        match r {
+            Ok(l) => {
+                loaded += usize::from(l);
+                k.2 += usize::from(l);
+            }
+            Err(e) => failures.push(e),
+        }
     };
     // Binary formats: 1,600 cases per seed (8,000). The first rejected
     // cases of each seed are kept for the CLI check below.
@@ -237,7 +317,7 @@ fn ten_thousand_malformed_inputs_never_panic() {
                 std::fs::write(&keep, &bytes).unwrap();
                 samples.push(keep);
             }
-            record(r);
+            record(&format!("seed {k} ({ext})"), r);
             cases += 1;
         }
     }
@@ -250,7 +330,7 @@ fn ten_thousand_malformed_inputs_never_panic() {
             mutate_text(&mut rng, ASC)
         };
         std::fs::write(&asc, text).unwrap();
-        record(load_once(&asc));
+        record("asc", load_once(&asc));
         cases += 1;
     }
     let raw = d.join("case.f32");
@@ -285,21 +365,13 @@ fn ten_thousand_malformed_inputs_never_panic() {
             Err(e) if e.contains("case.json") => Ok(false),
             r => r,
         };
-        record(r);
+        record("raw f32 + sidecar", r);
         cases += 1;
     }
     // Scenes: wrong types, missing fields, out-of-range values (2,000).
     for _ in 0..2000 {
         let text = mutate_text(&mut rng, SCENE);
-        let r = catch_unwind(AssertUnwindSafe(|| {
-            Scene::parse(&text, "fuzz.toml", &d).and_then(|s| s.lod_config().map(|_| ()))
-        }));
-        record(match r {
-            Err(_) => Err(format!("panic on scene:\n{text}")),
-            Ok(Ok(())) => Ok(true),
-            Ok(Err(e)) if e.to_string().contains("fuzz.toml") => Ok(false),
-            Ok(Err(e)) => Err(format!("scene error does not name the file: {e}")),
-        });
+        record("scene", scene_once(&text, &d));
         cases += 1;
     }
     let secs = start.elapsed().as_secs_f64();
@@ -308,6 +380,9 @@ fn ten_thousand_malformed_inputs_never_panic() {
         cases - loaded - failures.len(),
         failures.len()
     );
+    for (kind, n, ok) in &split {
+        println!("  {kind}: {ok} of {n} loaded");
+    }
     // From the CLI: a non-zero exit and a message naming the file.
     for p in &samples {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
@@ -332,10 +407,8 @@ fn ten_thousand_malformed_inputs_never_panic() {
         failures.len(),
         failures[0]
     );
-    // The harness must produce errors, not only accepted files.
-    assert!(
-        cases - loaded > cases / 2,
-        "only {} rejections",
-        cases - loaded
-    );
+    // The seeded run is reproducible, so its split is exact: a reader that
+    // starts accepting what it used to reject, or the reverse, changes it.
+    let got: Vec<(&str, usize)> = split.iter().map(|k| (k.0.as_str(), k.2)).collect();
+    assert_eq!(got, EXPECTED_LOADED, "loaded cases per kind");
 }

@@ -1,5 +1,6 @@
 //! Golden images: exact (0 pixels may differ), for 1, 2 and 8 threads and
-//! for the scalar and 8-lane raster paths. On failure, the actual and
+//! for the scalar, the portable 8-lane and the AVX2 + FMA 8-lane paths (the
+//! last is the portable build again on a CPU without them). On failure, the actual and
 //! difference images go to target/golden-diff.
 
 use std::path::Path;
@@ -20,6 +21,7 @@ fn every_golden_matches_for_any_thread_count_and_path() {
         (2, RasterPath::Simd),
         (8, RasterPath::Scalar),
         (8, RasterPath::Simd),
+        (2, RasterPath::Portable),
     ] {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -110,4 +112,51 @@ fn without_lighting_no_normals_are_computed() {
         .all(|p| p.name != "normals" && p.name != "normal-map"));
     assert_eq!(unlit.normals_computed, 0);
     assert_eq!(unlit.lightmap_rays, 0);
+}
+
+/// `TERRACLIP_SIMD` picks the build that runs, `render --json` says which
+/// (`raster_path`), every build draws the same bits, and a value the
+/// variable does not take is refused before anything is rendered.
+#[test]
+fn terraclip_simd_selects_the_path() {
+    let dir = std::env::temp_dir().join(format!("terraclip-simd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let avx2 = terraclip::raster::simd::has_avx2_fma();
+    let run = |value: Option<&str>| {
+        let out = dir.join(format!("{}.png", value.unwrap_or("unset")));
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"));
+        cmd.args(["render", "--size", "96x54", "--json", "-o"])
+            .arg(&out)
+            .env_remove("TERRACLIP_SIMD");
+        if let Some(v) = value {
+            cmd.env("TERRACLIP_SIMD", v);
+        }
+        let o = cmd.output().unwrap();
+        (o, out)
+    };
+    let mut images = vec![];
+    for (value, want) in [
+        (None, if avx2 { "avx2+fma" } else { "portable" }),
+        (Some("1"), if avx2 { "avx2+fma" } else { "portable" }),
+        (Some("0"), "scalar"),
+        (Some("scalar"), "scalar"),
+        (Some("portable"), "portable"),
+    ] {
+        let (o, out) = run(value);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{value:?}: {err}");
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["raster_path"], want, "TERRACLIP_SIMD={value:?}");
+        images.push(std::fs::read(&out).unwrap());
+    }
+    assert!(
+        images.windows(2).all(|w| w[0] == w[1]),
+        "every path, same PNG"
+    );
+    let (o, out) = run(Some("avx512"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && o.stdout.is_empty(), "{err}");
+    assert!(err.contains("TERRACLIP_SIMD=\"avx512\""), "{err}");
+    assert!(!out.exists(), "nothing written for a refused value");
+    let _ = std::fs::remove_dir_all(&dir);
 }

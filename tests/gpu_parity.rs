@@ -10,11 +10,36 @@ use std::path::Path;
 use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
 use terraclip::scene::Scene;
 
+fn required() -> bool {
+    std::env::var("TERRACLIP_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+/// The first Vulkan adapter. Under `TERRACLIP_REQUIRE_GPU=1` lavapipe must
+/// be the pinned one, so that exact mode is taken: a CI whose Mesa moved
+/// would otherwise fall back to tolerance mode and pass without checking a
+/// single bit.
 fn renderer() -> Option<GpuRenderer> {
     match Gpu::new(Api::Vulkan) {
-        Ok(g) => Some(GpuRenderer::new(g)),
+        Ok(g) => {
+            let lavapipe = g.info.name.starts_with("llvmpipe");
+            if required() && lavapipe && !g.exact_expected() {
+                panic!(
+                    "TERRACLIP_REQUIRE_GPU=1 and the adapter is lavapipe, but not the pinned \
+                     one (Mesa 22.3.6 on x86-64 with FMA), so exact mode would not be taken: \
+                     {} / {}",
+                    g.info.name, g.info.driver_info
+                );
+            }
+            eprintln!(
+                "adapter: {} / {} (exact: {})",
+                g.info.name,
+                g.info.driver_info,
+                g.exact_expected()
+            );
+            Some(GpuRenderer::new(g))
+        }
         Err(e) => {
-            if std::env::var("TERRACLIP_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+            if required() {
                 panic!("TERRACLIP_REQUIRE_GPU=1 but no adapter: {e}");
             }
             eprintln!("skipping GPU parity: {e}");

@@ -68,6 +68,22 @@ fn diagram_writes_a_png() {
     );
 }
 
+/// CRC-32 (ISO-HDLC, PNG's), bit by bit: enough for one chunk header.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
 #[test]
 fn bad_images_are_clean_errors() {
     let good = std::fs::read(JACKSBORO).unwrap();
@@ -91,14 +107,40 @@ fn bad_images_are_clean_errors() {
     );
     let empty = tmp("empty.png");
     std::fs::write(&empty, b"").unwrap();
-    fails_cleanly(&["info", empty.to_str().unwrap()], "empty.png", "");
-    // A PNG header claiming 2^30 × 2^30 pixels.
+    fails_cleanly(
+        &["info", empty.to_str().unwrap()],
+        "empty.png",
+        "cannot decode image: unexpected end of file",
+    );
+    // A PNG header claiming 2^30 × 2^30 pixels, with its chunk's CRC made
+    // right, so that the size is what the reader refuses (with the old CRC
+    // the decoder stops at a CRC error before reading the size).
     let mut huge = good[..33].to_vec();
     huge[16..20].copy_from_slice(&(1u32 << 30).to_be_bytes());
     huge[20..24].copy_from_slice(&(1u32 << 30).to_be_bytes());
+    let crc = crc32(&huge[12..29]);
+    huge[29..33].copy_from_slice(&crc.to_be_bytes());
     let huge_path = tmp("huge.png");
     std::fs::write(&huge_path, &huge).unwrap();
-    fails_cleanly(&["info", huge_path.to_str().unwrap()], "huge.png", "");
+    fails_cleanly(
+        &["info", huge_path.to_str().unwrap()],
+        "huge.png",
+        "Image size exceeds limit",
+    );
+    // Within the decoder's limits but over the heightmap's (2^28 texels):
+    // refused from the header, before the 272 M pixels are decoded.
+    let mut big = good.clone();
+    big[16..20].copy_from_slice(&17_000u32.to_be_bytes());
+    big[20..24].copy_from_slice(&16_000u32.to_be_bytes());
+    let crc = crc32(&big[12..29]);
+    big[29..33].copy_from_slice(&crc.to_be_bytes());
+    let big_path = tmp("big.png");
+    std::fs::write(&big_path, &big).unwrap();
+    fails_cleanly(
+        &["info", big_path.to_str().unwrap()],
+        "big.png",
+        "dimensions 17000×16000 exceed the limit",
+    );
     fails_cleanly(
         &["info", "/nonexistent/x.png"],
         "/nonexistent/x.png",
@@ -254,40 +296,89 @@ fn bad_scenes_are_clean_errors() {
 
 /// Outputs are written to a temporary file and renamed: a render killed at
 /// any moment, or one whose write fails, leaves the previous file intact.
+/// Three renders are asserted: one killed before its write, one killed in
+/// the middle of its write (held there by `TERRACLIP_TEST_STALL_WRITE_MS`,
+/// its temporary file half-written), and one left to finish, which replaces
+/// the file with the whole new image.
 #[test]
 fn killed_or_failed_renders_leave_the_previous_output_intact() {
-    use std::time::Duration;
+    use std::time::{Duration, Instant};
     let out = tmp("kept.png");
     let old = image::GrayImage::from_fn(3, 2, |x, _| image::Luma([x as u8]));
     old.save(&out).unwrap();
     let before = std::fs::read(&out).unwrap();
-    let mut replaced = 0;
-    for ms in [30u64, 150, 400, 800, 1200, 1600, 2200, 3000] {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_terraclip"))
-            .args([
-                "render",
-                "--size",
-                "1600x1200",
-                "--out",
-                out.to_str().unwrap(),
-            ])
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap();
-        std::thread::sleep(Duration::from_millis(ms));
-        let _ = child.kill();
-        let _ = child.wait();
-        let now = std::fs::read(&out).unwrap();
-        if now != before {
-            // Replaced: then it is the whole new image, never a prefix.
-            let img = image::load_from_memory(&now).expect("complete PNG");
-            assert_eq!((img.width(), img.height()), (1600, 1200), "after {ms} ms");
-            replaced += 1;
-            std::fs::write(&out, &before).unwrap();
+    let render = |stall_ms: Option<u64>| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_terraclip"));
+        cmd.args([
+            "render",
+            "--size",
+            "800x600",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env_remove("TERRACLIP_TEST_STALL_WRITE_MS")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+        if let Some(ms) = stall_ms {
+            cmd.env("TERRACLIP_TEST_STALL_WRITE_MS", ms.to_string());
         }
+        cmd.spawn().unwrap()
+    };
+    #[cfg(unix)]
+    let killed = |s: std::process::ExitStatus| {
+        use std::os::unix::process::ExitStatusExt;
+        s.signal() == Some(libc::SIGKILL)
+    };
+    #[cfg(not(unix))]
+    let killed = |s: std::process::ExitStatus| !s.success();
+
+    // Killed long before its write: the render of an 800×600 frame of the
+    // default scene takes far more than 20 ms.
+    let mut child = render(None);
+    std::thread::sleep(Duration::from_millis(20));
+    child
+        .kill()
+        .expect("the render is still running after 20 ms");
+    let status = child.wait().unwrap();
+    assert!(killed(status), "killed, not finished: {status:?}");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        before,
+        "killed before its write"
+    );
+
+    // Killed in the middle of its write.
+    let mut child = render(Some(120_000));
+    let part = out.with_file_name(format!(".kept.png.tmp-{}", child.id()));
+    let t = Instant::now();
+    while std::fs::metadata(&part).map_or(true, |m| m.len() == 0) {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the render ended early"
+        );
+        assert!(t.elapsed() < Duration::from_secs(120), "no write began");
+        std::thread::sleep(Duration::from_millis(5));
     }
-    println!("kill test: {replaced} of 8 renders finished before the kill");
+    child
+        .kill()
+        .expect("the render is still running: it is stalled in its write");
+    let status = child.wait().unwrap();
+    assert!(killed(status), "killed mid-write: {status:?}");
+    assert_eq!(std::fs::read(&out).unwrap(), before, "killed mid-write");
+    let partial = std::fs::read(&part).unwrap();
+    assert!(
+        image::load_from_memory(&partial).is_err(),
+        "the temporary file holds half a PNG ({} bytes)",
+        partial.len()
+    );
+    std::fs::remove_file(&part).unwrap();
+
+    // Left to finish: the whole new image replaces the old one.
+    let status = render(None).wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    let img = image::load_from_memory(&std::fs::read(&out).unwrap()).expect("complete PNG");
+    assert_eq!((img.width(), img.height()), (800, 600));
+
     // A write that fails (the target is a directory): error, nothing lost,
     // no temporary file left beside it.
     let target = tmp("a-directory.png");
@@ -342,6 +433,14 @@ fn a_closed_stdout_pipe_is_not_a_panic() {
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "{err}");
+    assert!(err.is_empty(), "quietly: {err}");
+    // Killed by SIGPIPE, as Unix tools are, not an error exit.
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}", out.status);
+    }
+    #[cfg(not(unix))]
     assert!(
         !out.status.success(),
         "the write into the closed pipe must end it"

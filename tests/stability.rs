@@ -383,7 +383,8 @@ fn cliffs_and_extreme_relief_morph_within_bounds() {
                     }
                 }
             }
-            assert_eq!(common::watertight(&cm), None, "{kind}");
+            let t = common::watertight(&cm).unwrap_or_else(|e| panic!("{kind}: {e}"));
+            assert!(t > 0, "{kind}: nothing drawn, nothing checked");
         }
     }
 }
@@ -451,14 +452,21 @@ fn camera_jumps_leave_a_fresh_watertight_clipmap() {
         let mut cm = common::clipmap(&map, 31, None, layout);
         let mut v = [100.25, 140.5];
         cm.update(v);
+        // Each jump of 1e6 is followed by one back over the map, so the
+        // watertightness check after it sees a mesh; a viewer 1e6 away sees
+        // none, and the check then asserts that nothing is drawn.
+        let mut on_map = 0;
         for jump in [
             [1.0, 0.0],
             [0.0, -1.0],
             [n, 0.0],
             [-n, n],
             [1e6, 0.0],
+            [-1e6, 0.0],
             [-1e6, -1e6],
             [1e6, 1e6],
+            [1e6, 1e6],
+            [-1e6 + 7.5, -1e6 - 3.25],
         ] {
             v = [v[0] + jump[0], v[1] + jump[1]];
             cm.update(v);
@@ -469,11 +477,23 @@ fn camera_jumps_leave_a_fresh_watertight_clipmap() {
                 assert_eq!(a.heights.texels(), b.heights.texels(), "jump {jump:?}");
                 assert_eq!(a.regions, b.regions, "jump {jump:?}");
             }
-            assert_eq!(common::watertight(&cm), None, "jump {jump:?} ({layout:?})");
+            let checked = common::watertight(&cm)
+                .unwrap_or_else(|e| panic!("jump {jump:?} ({layout:?}): {e}"));
+            if (0.0..257.0).contains(&v[0]) && (0.0..257.0).contains(&v[1]) {
+                assert!(checked > 0, "jump {jump:?} ({layout:?}): nothing checked");
+                on_map += 1;
+            }
         }
+        assert_eq!(on_map, 7, "{layout:?}: viewers over the map after a jump");
     }
 }
 
+/// Every level count from 1 to 16 on tiny maps, on a square map and on wide,
+/// thin ones that allow many levels (n = 15): a count the map allows is
+/// built in full (exactly that many levels, the coarsest covering the most)
+/// and watertight from every viewer; one it does not allow is refused with
+/// the reason. The maps reach 8, 10 and 11 levels, so most counts take the
+/// building branch.
 #[test]
 fn many_levels_on_tiny_and_thin_maps() {
     // A 1×N map has no cells to draw: refused with the reason.
@@ -485,39 +505,63 @@ fn many_levels_on_tiny_and_thin_maps() {
             "{w}×{h}: {e}"
         );
     }
-    let maps = [
-        (8usize, 8usize),
-        (2, 300),
-        (300, 2),
-        (2, 2),
-        (3, 1000),
-        (8, 5),
-    ];
-    for (w, h) in maps {
+    let tiny = |w: usize, h: usize| {
         let values: Vec<f32> = (0..w * h).map(|i| (i % 7) as f32).collect();
-        let map = Heightmap::from_values(w, h, values, None, [1.0, 1.0], "test").unwrap();
+        Heightmap::from_values(w, h, values, None, [1.0, 1.0], "test").unwrap()
+    };
+    let procedural = |w: usize, h: usize| {
+        let mut p = terraclip::heightmap::procedural::Procedural::new(3, w, h);
+        p.wavelength = 512.0;
+        p.octaves = 4;
+        p.generate().unwrap()
+    };
+    // (map, the most levels it allows with n = 15).
+    let maps = [
+        (tiny(8, 8), 1),
+        (tiny(2, 300), 1),
+        (tiny(300, 2), 1),
+        (tiny(2, 2), 1),
+        (tiny(3, 1000), 1),
+        (tiny(8, 5), 1),
+        (procedural(4097, 4097), 11),
+        (procedural(16385, 1025), 10),
+        (procedural(32769, 257), 8),
+    ];
+    let mut built = vec![];
+    for (map, most) in &maps {
+        let (w, h) = (map.width(), map.height());
+        assert_eq!(
+            terraclip::clipmap::region::max_levels(w, h, 15),
+            *most,
+            "{w}×{h}"
+        );
+        let p = std::sync::Arc::new(Pyramid::build(map, Filter::Box, 16));
         for levels in 1..=16usize {
-            let p = std::sync::Arc::new(Pyramid::build(&map, Filter::Box, levels));
             let made = Clipmap::new(
-                p,
+                p.clone(),
                 ClipmapConfig {
                     n: 15,
                     levels: Some(levels),
                     ..ClipmapConfig::default()
                 },
             );
-            let Ok(mut cm) = made else {
-                // Refused with a reason, never a panic.
-                let e = made.unwrap_err().to_string();
-                assert!(e.contains("level"), "{w}×{h}, L = {levels}: {e}");
-                continue;
+            let mut cm = match made {
+                Ok(cm) => cm,
+                Err(e) => {
+                    // Refused with a reason, never a panic, and only beyond
+                    // what the map allows.
+                    let e = e.to_string();
+                    assert!(levels > *most, "{w}×{h}, L = {levels} refused: {e}");
+                    assert!(e.contains("lod.levels"), "{w}×{h}, L = {levels}: {e}");
+                    assert!(e.contains(&format!("1..={most}")), "{e}");
+                    continue;
+                }
             };
-            for v in [
-                [0.0, 0.0],
-                [w as f64, h as f64],
-                [-1e9, 1e9],
-                [0.5 * w as f64, 0.5 * h as f64],
-            ] {
+            assert!(levels <= *most, "{w}×{h}: L = {levels} accepted");
+            assert_eq!(cm.levels().len(), levels, "{w}×{h}");
+            built.push(((w, h), levels));
+            let centre = [0.5 * w as f64, 0.5 * h as f64];
+            for v in [[0.0, 0.0], [w as f64, h as f64], [-1e9, 1e9], centre] {
                 cm.update(v);
                 for lv in cm.levels().iter().filter(|l| l.is_active()) {
                     let a = lv.regions.active.expect("active level has a region");
@@ -526,14 +570,20 @@ fn many_levels_on_tiny_and_thin_maps() {
                         "{w}×{h}, L = {levels}: empty active region"
                     );
                 }
-                assert_eq!(
-                    common::watertight(&cm),
-                    None,
-                    "{w}×{h}, L = {levels}, viewer {v:?}"
-                );
+                let checked = common::watertight(&cm)
+                    .unwrap_or_else(|e| panic!("{w}×{h}, L = {levels}, viewer {v:?}: {e}"));
+                if v == centre {
+                    // From the centre every level is active and drawn.
+                    let active = cm.levels().iter().filter(|l| l.is_active()).count();
+                    assert_eq!(active, levels, "{w}×{h}, L = {levels}");
+                    assert!(checked > 0, "{w}×{h}, L = {levels}: nothing drawn");
+                }
             }
         }
     }
+    // Six tiny maps of one level, and 11 + 10 + 8 counts on the large ones.
+    assert_eq!(built.len(), 6 + 11 + 10 + 8, "{built:?}");
+    println!("many levels: {} clipmaps built and checked", built.len());
 }
 
 /// Back-projects pixel (px, py) at depth `z` through the camera-relative

@@ -46,6 +46,11 @@ pub struct Difference {
     pub unmatched_px: usize,
     /// The first unmatched pixel in scan order, to start debugging from.
     pub unmatched_example: Option<PixelPair>,
+    /// The images are not comparable: other sizes, or a buffer (colour, or
+    /// depth where either image has depth) shorter or longer than its size
+    /// says, such as an empty or cut-off readback. Every pixel then counts
+    /// as differing and unmatched, and the comparison fails in both modes.
+    pub size_mismatch: bool,
 }
 
 /// One pixel as both back ends drew it (`a` is the reference).
@@ -77,6 +82,25 @@ fn channel_diff(p: &[u8], q: &[u8]) -> u8 {
 impl Difference {
     pub fn of(a: &Image, b: &Image) -> Difference {
         let mut d = Difference::default();
+        let (w, h) = (a.width as usize, a.height as usize);
+        let px = w * h;
+        let whole = |img: &Image| {
+            let n = img.width as usize * img.height as usize;
+            img.rgba.len() == 4 * n && (img.depth.is_empty() || img.depth.len() == n)
+        };
+        if (b.width as usize, b.height as usize) != (w, h)
+            || !whole(a)
+            || !whole(b)
+            || a.depth.is_empty() != b.depth.is_empty()
+            || px == 0
+        {
+            let all = px.max(b.width as usize * b.height as usize).max(1);
+            d.size_mismatch = true;
+            d.colour_px_differ = all;
+            d.depth_px_differ = all;
+            d.unmatched_px = all;
+            return d;
+        }
         for (p, q) in a.rgba.chunks_exact(4).zip(b.rgba.chunks_exact(4)) {
             let m = channel_diff(p, q);
             if m > 0 {
@@ -90,13 +114,9 @@ impl Difference {
                 d.max_depth_ulp = d.max_depth_ulp.max(depth_ulp(*p, *q));
             }
         }
-        let (w, h) = (a.width as usize, a.height as usize);
-        if (b.width as usize, b.height as usize) != (w, h) {
-            d.unmatched_px = w.max(b.width as usize) * h.max(b.height as usize);
-            return d;
-        }
-        // Images without depth (the GL back end's) compare colour alone.
-        let depth = a.depth.len() == w * h && b.depth.len() == w * h;
+        // Images without depth (the GL back end's, on both sides) compare
+        // colour alone.
+        let depth = !a.depth.is_empty();
         // The largest depth step from pixel i to a 4-neighbour.
         let steep = |img: &Image, px: usize, py: usize| {
             let z = img.depth[py * w + px];
@@ -190,6 +210,9 @@ impl Difference {
 
     /// Exact: nothing differs. Otherwise the stated tolerance.
     pub fn passes(&self, exact: bool, pixels: usize) -> bool {
+        if self.size_mismatch {
+            return false;
+        }
         if exact {
             return self.colour_px_differ == 0 && self.depth_px_differ == 0;
         }
@@ -320,7 +343,17 @@ pub fn check(
                 .clipmap()
                 .map_or(0, |cm| (cm.n() * cm.n()) as u64 * cm.levels().len() as u64);
         }
-        let d = Difference::of(&want, &got);
+        // GL reads back no depth: compare colour alone there; anywhere else
+        // a readback without depth is a failure (`size_mismatch`).
+        let d = if r.gpu.api == super::Api::Gl {
+            let colour = Image {
+                depth: vec![],
+                ..want.clone()
+            };
+            Difference::of(&colour, &got)
+        } else {
+            Difference::of(&want, &got)
+        };
         pass &= d.passes(exact, (want.width * want.height) as usize);
         total.colour_px_differ += d.colour_px_differ;
         total.depth_px_differ += d.depth_px_differ;
@@ -425,4 +458,73 @@ pub fn bench(r: &mut GpuRenderer, scene: &Scene, frames: usize, repeats: usize) 
         cpu_ms,
         gpu_ms,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flat(w: u32, h: u32) -> Image {
+        let n = (w * h) as usize;
+        Image {
+            width: w,
+            height: h,
+            rgba: vec![7; 4 * n],
+            depth: vec![0.5; n],
+        }
+    }
+
+    /// Fails in exact mode and in tolerance mode, with every pixel counted.
+    fn fails_both(a: &Image, b: &Image) -> Difference {
+        let d = Difference::of(a, b);
+        assert!(d.size_mismatch, "{d:?}");
+        let px = (a.width * a.height) as usize;
+        assert!(!d.passes(true, px) && !d.passes(false, px), "{d:?}");
+        assert!(d.colour_px_differ >= px && d.unmatched_px >= px, "{d:?}");
+        d
+    }
+
+    #[test]
+    fn identical_images_pass_both_modes() {
+        let d = Difference::of(&flat(4, 3), &flat(4, 3));
+        assert_eq!(d, Difference::default());
+        assert!(d.passes(true, 12) && d.passes(false, 12));
+    }
+
+    #[test]
+    fn an_image_of_another_size_fails() {
+        // Same pixel count, other shape: zipping the buffers would see no
+        // difference at all.
+        let d = fails_both(&flat(4, 3), &flat(3, 4));
+        assert_eq!(d.unmatched_px, 12);
+        // A smaller readback whose pixels all equal the reference's first.
+        let d = fails_both(&flat(8, 8), &flat(4, 4));
+        assert_eq!(d.unmatched_px, 64);
+    }
+
+    #[test]
+    fn an_empty_readback_fails() {
+        let mut b = flat(4, 3);
+        b.rgba.clear();
+        b.depth.clear();
+        fails_both(&flat(4, 3), &b);
+        // Zero by zero against zero by zero compares nothing: not a pass.
+        fails_both(&flat(0, 0), &flat(0, 0));
+    }
+
+    #[test]
+    fn a_short_readback_fails() {
+        let a = flat(4, 3);
+        let mut b = flat(4, 3);
+        b.rgba.truncate(4 * 11);
+        fails_both(&a, &b);
+        let mut b = flat(4, 3);
+        b.depth.truncate(5);
+        fails_both(&a, &b);
+        // Depth on one side only (a readback that lost it).
+        let mut b = flat(4, 3);
+        b.depth.clear();
+        fails_both(&a, &b);
+        fails_both(&b, &a);
+    }
 }

@@ -18,13 +18,13 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
     limits.max_image_height = Some(MAX_SIDE as u32);
     limits.max_alloc = Some(MAX_TEXELS * 8);
     reader.limits(limits);
-    let img = reader
-        .decode()
-        .map_err(|e| Error::file(path, format!("cannot decode image: {e}")))?;
-    named(
-        path,
-        check_dimensions(img.width() as u64, img.height() as u64),
-    )?;
+    let decode_err = |e: image::ImageError| Error::file(path, format!("cannot decode image: {e}"));
+    // The header's size is checked before any pixel is decoded, so a file
+    // that claims more texels than a heightmap may have costs nothing.
+    let decoder = reader.into_decoder().map_err(decode_err)?;
+    let (hw, hh) = image::ImageDecoder::dimensions(&decoder);
+    named(path, check_dimensions(hw as u64, hh as u64))?;
+    let img = DynamicImage::from_decoder(decoder).map_err(decode_err)?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let kind = if path
         .extension()

@@ -144,15 +144,22 @@ impl PyramidLevel {
     /// like [`Self::copy_clamped`]) into the nearest cache, for a copy a
     /// frame later.
     pub fn prefetch_row(&self, x0: i64, x1: i64, y: i64) {
-        if self.width == 0 || self.height == 0 {
-            return;
+        if let Some(run) = self.prefetch_range(x0, x1, y) {
+            prefetch_run(&self.data[run]);
+        }
+    }
+
+    /// The samples [`Self::prefetch_row`] fetches: the smallest run of
+    /// `data` that holds every sample `copy_clamped(x0, y, ..)` of
+    /// `x1 − x0` samples reads; `None` for an empty run or level.
+    fn prefetch_range(&self, x0: i64, x1: i64, y: i64) -> Option<std::ops::Range<usize>> {
+        if self.width == 0 || self.height == 0 || x1 <= x0 {
+            return None;
         }
         let w = self.width as i64;
         let (a, b) = (x0.clamp(0, w - 1) as usize, x1.clamp(1, w) as usize);
-        let yc = y.clamp(0, self.height as i64 - 1) as usize;
-        if let Some(run) = self.data.get(yc * self.width + a..yc * self.width + b) {
-            prefetch_run(run);
-        }
+        let row = y.clamp(0, self.height as i64 - 1) as usize * self.width;
+        Some(row + a..row + b)
     }
 
     /// Samples `(x0 + i, y)` into `out[i]`, coordinates clamped like
@@ -347,10 +354,11 @@ fn with_range(mut l: PyramidLevel) -> PyramidLevel {
 mod tests {
     use super::*;
 
-    /// Prefetch hints clamp like copies: any range, on or off the level,
-    /// inverted or empty, is accepted and changes nothing.
+    /// Prefetch hints clamp like copies: for any range, on or off the level,
+    /// inverted or empty, the run fetched is exactly the hull of the samples
+    /// the same copy reads, and fetching changes nothing.
     #[test]
-    fn prefetch_rows_anywhere_change_nothing() {
+    fn prefetch_fetches_what_the_copy_reads() {
         let data: Vec<f32> = (0..40 * 30).map(|i| i as f32).collect();
         let lv = PyramidLevel {
             width: 40,
@@ -368,13 +376,36 @@ mod tests {
             (20, 10),
             (5, 5),
             (-3, 3),
+            (0, 1),
+            (39, 40),
+            (-1, 41),
         ] {
-            for y in [-5, 0, 29, 400] {
+            for y in [-5, 0, 29, 30, 400] {
+                let got = lv.prefetch_range(x0, x1, y);
+                let want = (x1 > x0).then(|| {
+                    // The values are their own indices.
+                    let mut out = vec![0.0; (x1 - x0) as usize];
+                    lv.copy_clamped(x0, y, &mut out);
+                    let lo = out.iter().copied().fold(f32::INFINITY, f32::min) as usize;
+                    let hi = out.iter().copied().fold(0.0, f32::max) as usize;
+                    lo..hi + 1
+                });
+                assert_eq!(got, want, "x {x0}..{x1}, y {y}");
                 lv.prefetch_row(x0, x1, y);
             }
         }
         prefetch_run(&[]);
         assert_eq!(lv.data, data);
+        let empty = PyramidLevel {
+            width: 0,
+            height: 0,
+            data: vec![],
+            nodata: vec![],
+            min: 0.0,
+            max: 0.0,
+        };
+        assert_eq!(empty.prefetch_range(0, 5, 0), None);
+        empty.prefetch_row(0, 5, 0);
     }
 
     fn bump(sigma: f64) -> Heightmap {

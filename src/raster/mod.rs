@@ -50,17 +50,61 @@ pub struct Mesh<'a> {
 pub enum Path {
     /// One pixel at a time.
     Scalar,
-    /// Eight pixels at a time (AVX2 + FMA when the CPU has them).
+    /// Eight pixels at a time, as AVX2 + FMA code when the CPU has them.
     Simd,
+    /// Eight pixels at a time, always built for the x86-64 baseline: what
+    /// [`Path::Simd`] runs on a CPU without AVX2 + FMA, selectable on one
+    /// with them so that every machine checks that build too.
+    Portable,
 }
 
 impl Path {
-    /// `TERRACLIP_SIMD=0` selects the scalar path; anything else the 8-lane
-    /// one. CI runs the goldens both ways.
+    /// The names `TERRACLIP_SIMD` takes: `0`, `off` or `scalar` select
+    /// [`Path::Scalar`]; `portable` [`Path::Portable`]; `1`, `on`, `simd`
+    /// or an empty value [`Path::Simd`]. Anything else is `None`.
+    pub fn parse(s: &str) -> Option<Path> {
+        match s {
+            "0" | "off" | "scalar" => Some(Path::Scalar),
+            "portable" => Some(Path::Portable),
+            "" | "1" | "on" | "simd" => Some(Path::Simd),
+            _ => None,
+        }
+    }
+
+    /// The path `TERRACLIP_SIMD` selects ([`Path::parse`]); unset or
+    /// unrecognised, [`Path::Simd`]. The CLI refuses an unrecognised value
+    /// before it renders ([`Path::check_env`]).
     pub fn from_env() -> Self {
-        match std::env::var("TERRACLIP_SIMD").as_deref() {
-            Ok("0") | Ok("off") | Ok("scalar") => Path::Scalar,
-            _ => Path::Simd,
+        std::env::var("TERRACLIP_SIMD")
+            .ok()
+            .and_then(|v| Path::parse(&v))
+            .unwrap_or(Path::Simd)
+    }
+
+    /// An error naming the variable and its value when `TERRACLIP_SIMD` is
+    /// set to something [`Path::parse`] does not know.
+    pub fn check_env() -> std::result::Result<(), String> {
+        match std::env::var("TERRACLIP_SIMD") {
+            Ok(v) if Path::parse(&v).is_none() => Err(format!(
+                "TERRACLIP_SIMD={v:?} is not one of 0, off, scalar, portable, 1, on, simd"
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Whether this path runs the AVX2 + FMA builds of the raster and
+    /// shading loops on this CPU.
+    pub fn uses_avx2_fma(self) -> bool {
+        self == Path::Simd && simd::has_avx2_fma()
+    }
+
+    /// What ran, as `render --json` reports it (`raster_path`): `scalar`,
+    /// `portable` (8 lanes, baseline build) or `avx2+fma`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Path::Scalar => "scalar",
+            _ if self.uses_avx2_fma() => "avx2+fma",
+            _ => "portable",
         }
     }
 }
@@ -384,7 +428,7 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
 
     let bins = bin::bin(&tris, width, height);
     let (tiles_x, _) = bin::grid(width, height);
-    let avx2 = simd::has_avx2_fma();
+    let avx2 = opts.path.uses_avx2_fma();
     // One band of 64 rows per task: its tiles are drawn into a reused tile
     // buffer and copied straight into the band, which the task owns, so the
     // full-size buffers are written once, in parallel.
@@ -409,7 +453,7 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
                     let (x, y) = (tx0 as i64, ty0 as i64);
                     match opts.path {
                         Path::Scalar => tile::draw(t, id, x, y, buf),
-                        Path::Simd => simd::draw(t, id, x, y, buf, avx2),
+                        Path::Simd | Path::Portable => simd::draw(t, id, x, y, buf, avx2),
                     }
                 }
                 let tw = (w - tx0 as usize).min(bin::TILE as usize);

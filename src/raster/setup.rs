@@ -190,12 +190,22 @@ mod tests {
         assert_eq!(p.eval(0.0, 4.0), 5.0);
     }
 
+    /// Rule 1 against rule 6 on an input where fusing changes the f32
+    /// result in both x and y (found by a search over x_ndc in (0, 1) at
+    /// 1920×1080), so a mapping that drops the FMA, or a clipper mapping
+    /// that adds one, fails.
     #[test]
     fn viewport_uses_fma() {
-        let vp = Viewport::new(3, 3);
-        let v = vp.map([0.1, 0.0, 0.5, 1.0]);
-        assert_eq!(v.x, 0.1f32.mul_add(1.5, 1.5));
-        assert_eq!(v.y, 1.5);
+        let vp = Viewport::new(1920, 1080);
+        let xd = 0.23757f32;
+        let (fx, ux) = (xd.mul_add(960.0, 960.0), xd * 960.0 + 960.0);
+        let (fy, uy) = (xd.mul_add(-540.0, 540.0), xd * -540.0 + 540.0);
+        assert_ne!(fx.to_bits(), ux.to_bits(), "the input must tell them apart");
+        assert_ne!(fy.to_bits(), uy.to_bits(), "the input must tell them apart");
+        let v = vp.map([xd, xd, 0.5, 1.0]);
+        assert_eq!((v.x.to_bits(), v.y.to_bits()), (fx.to_bits(), fy.to_bits()));
         assert_eq!(v.z, 0.5);
+        let c = vp.map_clipped([xd, xd, 0.5, 1.0]);
+        assert_eq!((c.x.to_bits(), c.y.to_bits()), (ux.to_bits(), uy.to_bits()));
     }
 }

@@ -484,12 +484,12 @@ impl<'a> Texels<'a> {
 /// `path` picks the build of the per-row loop: [`Path::Simd`] runs one
 /// compiled for AVX2 + FMA when the CPU has them, where `mul_add` and
 /// rounding are single instructions instead of library calls; the scalar
-/// path runs the portable build. IEEE 754 fixes the result of each
+/// and portable paths run the baseline build. IEEE 754 fixes the result of each
 /// operation, so both give the same bits (the goldens check it).
 pub fn shade(s: &ShadeInputs, r: &Raster, path: Path) -> Vec<u8> {
     let w = r.width as usize;
     let mut out = vec![0u8; w * r.height as usize * 4];
-    let fast = path == Path::Simd && crate::raster::simd::has_avx2_fma();
+    let fast = path.uses_avx2_fma();
     out.par_chunks_mut(w * 4).enumerate().for_each_init(
         || Scratch::new(w, s.layout.len()),
         |sc, (py, row)| {

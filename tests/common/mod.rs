@@ -62,17 +62,27 @@ fn key(v: &MeshVertex) -> Key {
     (v.x, v.y, v.zm.to_bits())
 }
 
-/// Returns a description of the first violation, or None if the mesh is
-/// watertight (see `tests/cracks.rs` for what is checked).
-pub fn watertight(cm: &Clipmap) -> Option<String> {
+/// Checks that the mesh is watertight (see `tests/cracks.rs` for what is
+/// checked) and returns how many triangles it checked: 0 when no level
+/// meets the map, which is then checked to draw nothing. Otherwise a
+/// description of the first violation.
+pub fn watertight(cm: &Clipmap) -> Result<usize, String> {
     let levels = cm.levels();
     // Footprints draw full rings cut to the usable map; strips' active
     // regions are already within it.
-    let outer: Rect = levels
+    let outer: Option<Rect> = levels
         .iter()
         .rev()
-        .find_map(|l| l.regions.active)?
-        .intersect(&cm.level_bounds(0))?;
+        .find_map(|l| l.regions.active)
+        .and_then(|a| a.intersect(&cm.level_bounds(0)));
+    let Some(outer) = outer else {
+        let drawn: usize = cm.meshes(None).iter().map(|m| cm.triangles(m).len()).sum();
+        return match drawn {
+            0 => Ok(0),
+            n => Err(format!("{n} triangles drawn, but no level meets the map")),
+        };
+    };
+    let mut triangles = 0usize;
     let mut edges: HashMap<(Key, Key), i32> = HashMap::new();
     let mut area2: i128 = 0;
     for mesh in cm.meshes(None) {
@@ -81,19 +91,20 @@ pub fn watertight(cm: &Clipmap) -> Option<String> {
             let cross = (b.x - a.x) as i128 * (c.y - a.y) as i128
                 - (b.y - a.y) as i128 * (c.x - a.x) as i128;
             if cross <= 0 {
-                return Some(format!(
+                return Err(format!(
                     "non-positive triangle at level {}: {t:?}",
                     mesh.level
                 ));
             }
             area2 += cross;
+            triangles += 1;
             for (p, q) in [(a, b), (b, c), (c, a)] {
                 *edges.entry((key(&p), key(&q))).or_default() += 1;
             }
         }
     }
     if area2 != 2 * outer.cell_area() as i128 {
-        return Some(format!(
+        return Err(format!(
             "area {} ≠ rendered area {}",
             area2 as f64 / 2.0,
             outer.cell_area()
@@ -102,7 +113,7 @@ pub fn watertight(cm: &Clipmap) -> Option<String> {
     let mut perimeter = 0i64;
     for (&(p, q), &count) in &edges {
         if count != 1 {
-            return Some(format!("edge {p:?}→{q:?} used {count} times (overlap)"));
+            return Err(format!("edge {p:?}→{q:?} used {count} times (overlap)"));
         }
         if edges.contains_key(&(q, p)) {
             continue;
@@ -115,13 +126,13 @@ pub fn watertight(cm: &Clipmap) -> Option<String> {
             || (p.1 == outer.y1 && q.1 == outer.y1 && q.0 < p.0)
             || (p.0 == outer.x0 && q.0 == outer.x0 && q.1 < p.1);
         if !ok {
-            return Some(format!("unmatched interior edge {p:?}→{q:?}"));
+            return Err(format!("unmatched interior edge {p:?}→{q:?}"));
         }
         perimeter += (q.0 - p.0).abs() + (q.1 - p.1).abs();
     }
     let want = 2 * (outer.width() + outer.height());
     if perimeter != want {
-        return Some(format!("perimeter {perimeter} ≠ {want}"));
+        return Err(format!("perimeter {perimeter} ≠ {want}"));
     }
-    None
+    Ok(triangles)
 }
