@@ -1,5 +1,7 @@
 //! Golden images: every `<name>.toml` in a folder is rendered and compared
-//! with `<name>.png`, exactly (0 pixels may differ). `bless` rewrites the
+//! with `<name>.png`, exactly (0 pixels may differ), and its Depth32Float
+//! buffer with the hash in `<name>.depth` (a surface that moved under an
+//! unchanged colour, say behind fog, still fails). `bless` rewrites the
 //! references, each through a temporary file and a rename. On a mismatch,
 //! the actual image and a difference image can be written for inspection.
 
@@ -15,6 +17,12 @@ pub struct GoldenResult {
     pub scene: String,
     /// Pixels whose RGBA differ (every pixel when the reference is missing).
     pub px_differ: usize,
+    /// The depth buffer's hash ([`depth_hash`]), as 16 hex digits.
+    pub depth_hash: String,
+    /// Whether it equals the one in `<name>.depth` (false when that file
+    /// is missing).
+    pub depth_pass: bool,
+    /// Colour and depth both match.
     pub pass: bool,
     /// True when `bless` wrote a new reference.
     pub blessed: bool,
@@ -61,6 +69,33 @@ pub fn diff(a: &Image, expected: &[u8]) -> (usize, Image) {
     (n, out)
 }
 
+/// FNV-1a (64-bit) over the buffer's f32 bit patterns, little-endian, then
+/// over its length: a fixed, dependency-free digest. It guards against
+/// accidental change, not against an adversary.
+pub fn depth_hash(depth: &[f32]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let bytes = depth
+        .iter()
+        .flat_map(|d| d.to_bits().to_le_bytes())
+        .chain((depth.len() as u64).to_le_bytes());
+    for b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
+/// The `<name>.depth` line: the hash's name, its 16 hex digits and the
+/// buffer's size.
+fn depth_line(img: &Image) -> String {
+    format!(
+        "fnv1a64 {:016x} {}x{}\n",
+        depth_hash(&img.depth),
+        img.width,
+        img.height
+    )
+}
+
 /// Checks (or with `bless`, rewrites) one scene's reference.
 pub fn check_one(
     scene_path: &Path,
@@ -94,14 +129,28 @@ pub fn check_one(
     } else {
         total
     };
-    let blessed = bless && px_differ > 0;
+    let depth_file = scene_path.with_extension("depth");
+    let line = depth_line(&img);
+    let depth_pass = match std::fs::read_to_string(&depth_file) {
+        Ok(text) => text == line,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+        Err(e) => return Err(Error::io(&depth_file, e)),
+    };
+    let blessed = bless && (px_differ > 0 || !depth_pass);
     if blessed {
-        write_atomic(&png, &img.png()?)?;
+        if px_differ > 0 {
+            write_atomic(&png, &img.png()?)?;
+        }
+        if !depth_pass {
+            write_atomic(&depth_file, line.as_bytes())?;
+        }
     }
     Ok(GoldenResult {
         scene: name,
         px_differ,
-        pass: px_differ == 0 || blessed,
+        depth_hash: format!("{:016x}", depth_hash(&img.depth)),
+        depth_pass,
+        pass: (px_differ == 0 && depth_pass) || blessed,
         blessed,
     })
 }

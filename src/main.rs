@@ -831,7 +831,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         (true, _) => "ok",
                         _ => "FAIL",
                     };
-                    println!("{:<8} {:<22} {} px differ", state, r.scene, r.px_differ);
+                    let depth = if r.depth_pass { "same" } else { "DIFFERS" };
+                    println!(
+                        "{:<8} {:<22} {} px differ, depth {depth}",
+                        state, r.scene, r.px_differ
+                    );
                 }
             }
             let failed = results.iter().filter(|r| !r.pass).count();

@@ -33,8 +33,10 @@ fn every_golden_matches_for_any_thread_count_and_path() {
                 .unwrap();
             if !r.pass {
                 failures.push(format!(
-                    "{} ({threads} threads, {path:?}): {} px",
-                    r.scene, r.px_differ
+                    "{} ({threads} threads, {path:?}): {} px, depth {}",
+                    r.scene,
+                    r.px_differ,
+                    if r.depth_pass { "same" } else { "differs" }
                 ));
             }
         }
@@ -160,3 +162,70 @@ fn terraclip_simd_selects_the_path() {
     assert!(!out.exists(), "nothing written for a refused value");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The depth hash is part of the golden: one depth value a ULP off, a
+/// changed `.depth` file or a missing one fails a scene whose colour is
+/// unchanged; `--bless` writes the file back.
+#[test]
+fn goldens_compare_depth_as_well_as_colour() {
+    use terraclip::golden::depth_hash;
+    let d = vec![0.25f32, 0.5, 1.0];
+    let mut e = d.clone();
+    e[1] = f32::from_bits(e[1].to_bits() + 1);
+    assert_ne!(depth_hash(&d), depth_hash(&e));
+    assert_ne!(depth_hash(&d), depth_hash(&d[..2]));
+    assert_ne!(depth_hash(&[0.0]), depth_hash(&[-0.0]));
+
+    let dir = std::env::temp_dir().join(format!("terraclip-golden-depth-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
+    for ext in ["toml", "png", "depth"] {
+        std::fs::copy(
+            src.join(format!("level-tint.{ext}")),
+            dir.join(format!("level-tint.{ext}")),
+        )
+        .unwrap();
+    }
+    let scene = dir.join("level-tint.toml");
+    let depth = dir.join("level-tint.depth");
+    let opts = RenderOptions::default();
+    let r = check_one(&scene, false, None, &opts).unwrap();
+    assert!(r.pass && r.depth_pass && r.px_differ == 0, "{r:?}");
+    let line = std::fs::read_to_string(&depth).unwrap();
+    assert_eq!(line, format!("fnv1a64 {} 400x240\n", r.depth_hash));
+    // One hex digit changed.
+    let last = line.find(' ').unwrap() + 16;
+    let mut changed = line.clone().into_bytes();
+    changed[last] = if changed[last] == b'0' { b'1' } else { b'0' };
+    std::fs::write(&depth, &changed).unwrap();
+    let r = check_one(&scene, false, None, &opts).unwrap();
+    assert!(!r.pass && !r.depth_pass && r.px_differ == 0, "{r:?}");
+    std::fs::remove_file(&depth).unwrap();
+    let r = check_one(&scene, false, None, &opts).unwrap();
+    assert!(!r.pass && !r.depth_pass, "{r:?}");
+    let r = check_one(&scene, true, None, &opts).unwrap();
+    assert!(r.pass && r.blessed, "{r:?}");
+    assert_eq!(std::fs::read_to_string(&depth).unwrap(), line);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The `morph-off` golden cracks on purpose and `morph-on` does not:
+/// counted as background (red) pixels enclosed by terrain where a
+/// brute-force render of the same view covers them. The renders are
+/// deterministic, so the count is exact (measured 2026-12-01).
+#[test]
+fn the_morph_off_golden_cracks_and_morph_on_does_not() {
+    let opts = RenderOptions::default();
+    let cracks = |name: &str| {
+        let s = golden_scene(name);
+        let (img, _) = render(&s, &opts).unwrap();
+        let (bf, _) = render(&s.with_lod("brute-force").unwrap(), &opts).unwrap();
+        terraclip::metrics::crack_pixels(&img, &bf, [255, 0, 0])
+    };
+    let (off, on) = (cracks("morph-off"), cracks("morph-on"));
+    println!("enclosed background pixels: morph-off {off}, morph-on {on}");
+    assert_eq!(on, 0, "morph-on is crack-free");
+    assert_eq!(off, MORPH_OFF_CRACK_PIXELS, "morph-off cracks");
+}
+
+const MORPH_OFF_CRACK_PIXELS: usize = 69;

@@ -139,13 +139,25 @@ fn every_scheme_renders_the_default_view_near_brute_force() {
     let opts = terraclip::render::RenderOptions::default();
     let cam = s.camera();
     let (bf, _) = terraclip::render::render(&s.with_lod("brute-force").unwrap(), &opts).unwrap();
-    for lod in ["clipmap", "geomipmap", "roam", "cdlod", "annulus"] {
+    // The renders are deterministic, so each RMSE is a fixed number:
+    // measured (2026-12-01) 20.23, 14.94, 16.28, 7.01 and 22.29. The bound
+    // is the measured value plus 10 %, room for a small legitimate change
+    // (a cull or split tweak) while a scheme that drops detail, samples the
+    // wrong level or misplaces its mesh moves it by far more.
+    for (lod, measured) in [
+        ("clipmap", 20.23),
+        ("geomipmap", 14.94),
+        ("roam", 16.28),
+        ("cdlod", 7.01),
+        ("annulus", 22.29),
+    ] {
         let (img, st) = terraclip::render::render(&s.with_lod(lod).unwrap(), &opts).unwrap();
         let e = terraclip::metrics::image_error(&img, &bf, &cam);
         println!("{lod}: {} triangles, rmse {:.2}", st.triangles, e.rmse);
         assert!(st.triangles > 0, "{lod} drew nothing");
         assert_eq!(st.non_finite_vertices, 0);
-        assert!(e.rmse < 40.0, "{lod}: rmse {}", e.rmse);
+        let bound = 1.1 * measured;
+        assert!(e.rmse < bound, "{lod}: rmse {} ≥ {bound}", e.rmse);
     }
 }
 
@@ -183,6 +195,16 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
         .find(|x| x.config.contains("morph off"))
         .unwrap();
     assert!(off.popping > 0.0, "morph off shows no popping");
+    let on = r
+        .rows
+        .iter()
+        .find(|x| x.lod == "clipmap" && x.config == off.config.replace("morph off", "strips"))
+        .unwrap_or_else(|| panic!("no morph-on row beside {:?}", off.config));
+    println!(
+        "tradeoff popping: {} {:.3}, {} {:.3}",
+        on.config, on.popping, off.config, off.popping
+    );
+    assert!(on.popping < 0.8 * off.popping, "{on:?} against {off:?}");
     let ss: Vec<f64> = r
         .rows
         .iter()
@@ -204,19 +226,37 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Popping, per frame, is the part of the image's change that brute force's
+/// change along the same path does not share. Some of it is not popping at
+/// all (a coarse mesh moves differently from the fine one), so morph on
+/// stays above 0; what geomorphing removes is the jump when a window
+/// shifts. On this path (24 frames of 3 m, 2026-12-01) morph on measured
+/// mean 4.81 and max 6.52 against 7.04 and 10.61 off: ratios 0.68 and
+/// 0.61. Both must stay under 0.8; a morph that does nothing gives 1.
 #[test]
 fn fly_reports_updates_and_sees_pops_without_morph() {
     let mut s = scene();
-    let on = terraclip::fly::fly(&s, 12, 7.0, true, |_, _| Ok(())).unwrap();
+    let on = terraclip::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
     s.effects.retain(|e| e != "morph");
-    let off = terraclip::fly::fly(&s, 12, 7.0, true, |_, _| Ok(())).unwrap();
-    assert_eq!(on.frames.len(), 12);
+    let off = terraclip::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
+    assert_eq!(on.frames.len(), 24);
     assert!(on.texels_updated > 0, "the clipmap never updated");
+    let mean = |r: &terraclip::fly::FlyReport| {
+        r.frames.iter().map(|f| f.popping).sum::<f64>() / r.frames.len() as f64
+    };
     println!(
-        "popping max: morph on {:.3}, off {:.3}",
-        on.popping_max, off.popping_max
+        "popping: morph on mean {:.3} max {:.3}, off mean {:.3} max {:.3}",
+        mean(&on),
+        on.popping_max,
+        mean(&off),
+        off.popping_max
     );
     assert!(off.popping_max > 0.0);
+    assert!(mean(&on) < 0.8 * mean(&off), "mean popping, on against off");
+    assert!(
+        on.popping_max < 0.8 * off.popping_max,
+        "max popping, on against off"
+    );
     let bf = terraclip::fly::fly(&s.with_lod("brute-force").unwrap(), 3, 7.0, true, |_, _| {
         Ok(())
     })
