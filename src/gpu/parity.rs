@@ -245,6 +245,11 @@ pub struct SceneParity {
     /// and what full uploads would have written.
     pub texels_uploaded: u64,
     pub texels_full: u64,
+    /// With a lazy pyramid: the coarsest levels not yet drawn after each
+    /// frame of the GPU's session (absent otherwise), so a path can show
+    /// levels joining while the images still match.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub levels_unbuilt: Option<Vec<usize>>,
 }
 
 /// Draws `session`'s frame for `camera` on the GPU (the clipmap path when the
@@ -330,11 +335,15 @@ pub fn check(
     let mut triangles = 0;
     let mut pass = true;
     let (mut uploaded, mut full) = (0, 0);
+    let mut unbuilt: Option<Vec<usize>> = None;
     for i in 0..frames.max(1) {
         let cam = path_camera(&base, i, step);
         let (frame, _) = cpu.frame(&cam, &mut passes)?;
         let (want, _) = render::draw(&frame, &opts, &mut passes);
-        let (gframe, got, _) = gpu_frame(r, &mut gpu, &cam, &mut passes)?;
+        let (gframe, got, lazy) = gpu_frame(r, &mut gpu, &cam, &mut passes)?;
+        if let Some(l) = lazy {
+            unbuilt.get_or_insert_with(Vec::new).push(l.levels_unbuilt);
+        }
         triangles = triangles.max(gframe.triangle_count());
         if i > 0 {
             uploaded += r.texels_uploaded();
@@ -395,6 +404,7 @@ pub fn check(
         worst_frame: worst.as_ref().map_or(0, |w| w.0),
         texels_uploaded: uploaded,
         texels_full: full,
+        levels_unbuilt: unbuilt,
     })
 }
 
