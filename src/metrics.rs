@@ -82,6 +82,15 @@ pub fn crack_pixels(lod: &Image, brute: &Image, background: [u8; 3]) -> usize {
     let bg = is_bg(lod);
     let covered: Vec<bool> = is_bg(brute).iter().map(|b| !b).collect();
     let (w, h) = (lod.width as usize, lod.height as usize);
+    let inside = enclosed(&bg, w, h);
+    (0..w * h).filter(|&i| inside[i] && covered[i]).count()
+}
+
+/// The pixels of `bg` (a `w`×`h` mask, row-major) that no path of `bg`
+/// pixels through their 4-neighbours joins to the image border: background
+/// enclosed by surface, as a hole shows it, where sky past a silhouette
+/// reaches the border.
+pub fn enclosed(bg: &[bool], w: usize, h: usize) -> Vec<bool> {
     let mut outside = vec![false; w * h];
     let mut stack: Vec<usize> = (0..w * h)
         .filter(|&i| bg[i] && (i % w == 0 || i % w == w - 1 || i / w == 0 || i / w == h - 1))
@@ -111,9 +120,7 @@ pub fn crack_pixels(lod: &Image, brute: &Image, background: [u8; 3]) -> usize {
             }
         }
     }
-    (0..w * h)
-        .filter(|&i| bg[i] && covered[i] && !outside[i])
-        .count()
+    (0..w * h).map(|i| bg[i] && !outside[i]).collect()
 }
 
 /// Box-filters an image rendered at `s`× the width and height down to
