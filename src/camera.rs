@@ -53,6 +53,14 @@ impl Camera {
     pub fn view_projection(&self) -> DMat4 {
         self.projection() * self.view()
     }
+    /// The unit direction of the ray from the eye through window position
+    /// (wx, wy) of a `size` image (pixel centres at +0.5, y down), in f64.
+    pub fn ray_through(&self, size: [u32; 2], wx: f64, wy: f64) -> DVec3 {
+        let xn = wx / size[0] as f64 * 2.0 - 1.0;
+        let yn = 1.0 - wy / size[1] as f64 * 2.0;
+        let p = self.view_projection().inverse() * DVec4::new(xn, yn, 0.5, 1.0);
+        (p.truncate() / p.w - self.eye).normalize()
+    }
     /// The six inward-facing planes (left, right, bottom, top, near, far):
     /// a point p is inside when `plane.xyz · p + plane.w ≥ 0` for all six.
     pub fn frustum(&self) -> Frustum {

@@ -1,14 +1,30 @@
-//! The crack survey: renders over a red background from many random views
-//! and counts background pixels enclosed by terrain that a brute-force
-//! render of the same view covers ([`metrics::crack_pixels`]), for any LOD
-//! scheme. Brute-force renders are shared by all schemes of one run.
+//! The crack survey: renders over a red background from many random views.
+//! A candidate is a background pixel enclosed by terrain that a brute-force
+//! render of the same view covers ([`metrics::crack_pixels`]). On steep
+//! relief at grazing angles that is also true of sky seen past a ridge the
+//! LOD made lower, which no hole made, so each candidate is classified
+//! against the LOD's own surface (the frame's triangles, [`Surface`]):
+//!
+//! - a **hole** when the ray through the pixel centre meets that surface
+//!   before the far plane (the surface is there and was not drawn), or,
+//!   over the map and below the terrain's top, crosses a place no triangle
+//!   covers (a missing triangle) or runs under the surface without having
+//!   met it (through a T-junction's slit);
+//! - an **LOD difference** otherwise: the ray passes above the LOD's
+//!   surface everywhere, and brute force's finer ridges hide that sky.
+//!
+//! `crack_pixels` counts holes only; `lod_sky_pixels` the rest. Brute-force
+//! renders are shared by all schemes of one run.
 
+use crate::camera::Camera;
 use crate::error::Result;
 use crate::metrics;
-use crate::render::{Image, RenderOptions, Session};
+use crate::render::{self, Image, RenderOptions, Session};
 use crate::scene::Scene;
 use crate::stats::Passes;
+use crate::surface::Surface;
 use crate::views;
+use glam::DVec3;
 use serde::Serialize;
 
 /// Schemes `--lod all` surveys (brute force is the reference).
@@ -24,9 +40,14 @@ pub const ALL: &[&str] = &[
 #[derive(Clone, Debug, Serialize)]
 pub struct SchemeCracks {
     pub lod: String,
+    /// Candidates classified as holes.
     pub crack_pixels: usize,
-    /// Views with at least one crack pixel.
+    /// Candidates classified as sky past a ridge the LOD made lower.
+    pub lod_sky_pixels: usize,
+    /// Views with at least one hole.
     pub views_with_cracks: usize,
+    /// Views with at least one LOD-sky pixel.
+    pub views_with_lod_sky: usize,
     pub worst_view: usize,
     pub worst_pixels: usize,
     /// The worst view's eye and look-at point (for `render --camera
@@ -40,8 +61,10 @@ pub struct SchemeCracks {
 #[derive(Clone, Debug, Serialize)]
 pub struct CrackReport {
     pub views: usize,
-    /// Over all surveyed schemes.
+    /// Holes over all surveyed schemes.
     pub crack_pixels: usize,
+    /// LOD-sky pixels over all surveyed schemes.
+    pub lod_sky_pixels: usize,
     pub worst_view: usize,
     pub schemes: Vec<SchemeCracks>,
 }
@@ -79,7 +102,9 @@ pub fn survey(
         .map(|s| SchemeCracks {
             lod: s.clone(),
             crack_pixels: 0,
+            lod_sky_pixels: 0,
             views_with_cracks: 0,
+            views_with_lod_sky: 0,
             worst_view: 0,
             worst_pixels: 0,
             worst_camera: [0.0; 6],
@@ -89,10 +114,26 @@ pub fn survey(
     for (i, cam) in cams.iter().enumerate() {
         let (reference, _) = brute.render(cam, &opts, Passes::default())?;
         for (s, r) in sessions.iter_mut().zip(out.iter_mut()) {
-            let (img, _) = s.render(cam, &opts, Passes::default())?;
-            let c = metrics::crack_pixels(&img, &reference, [255, 0, 0]);
+            let (frame, _) = s.frame(cam, &mut Passes::default())?;
+            let (img, _) = render::draw(&frame, &opts, &mut Passes::default());
+            let candidates = metrics::crack_candidates(&img, &reference, [255, 0, 0]);
+            let (mut c, mut sky) = (0, 0);
+            if !candidates.is_empty() {
+                let domain = Domain::of(s);
+                let surface = Surface::new(&frame, &s.world);
+                for &p in &candidates {
+                    let (px, py) = (p % img.width as usize, p / img.width as usize);
+                    let dir = cam.ray_through(size, px as f64 + 0.5, py as f64 + 0.5);
+                    match classify(&surface, cam, dir, &domain) {
+                        Candidate::Hole => c += 1,
+                        Candidate::LodSky => sky += 1,
+                    }
+                }
+            }
             r.crack_pixels += c;
+            r.lod_sky_pixels += sky;
             r.views_with_cracks += usize::from(c > 0);
+            r.views_with_lod_sky += usize::from(sky > 0);
             if c > r.worst_pixels {
                 r.worst_pixels = c;
                 r.worst_view = i;
@@ -107,7 +148,211 @@ pub fn survey(
     Ok(CrackReport {
         views: count,
         crack_pixels: out.iter().map(|r| r.crack_pixels).sum(),
+        lod_sky_pixels: out.iter().map(|r| r.lod_sky_pixels).sum(),
         worst_view: worst.map_or(0, |r| r.worst_view),
         schemes: out,
     })
+}
+
+/// What explains a candidate pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Candidate {
+    /// The LOD's surface is there (or missing inside the map) and was not
+    /// drawn.
+    Hole,
+    /// The ray passes above the LOD's surface everywhere.
+    LodSky,
+}
+
+/// Where the terrain is: the map's world rectangle, the top of its
+/// heights, and the step the ray is sampled at over it (a quarter cell).
+#[derive(Clone, Copy, Debug)]
+pub struct Domain {
+    /// (x0, y0, x1, y1) in world metres.
+    pub rect: [f64; 4],
+    /// The highest terrain point, metres.
+    pub top: f64,
+    /// Sampling step along the ray's ground track, metres.
+    pub step: f64,
+}
+
+impl Domain {
+    /// The session's map, cut to what its LOD scheme covers: a clipmap
+    /// draws nothing beyond its coarsest level's active region.
+    pub fn of(s: &Session) -> Domain {
+        let base = &s.pyramid().levels[0];
+        let w = &s.world;
+        let (mut c0, mut r0, mut c1, mut r1) = (
+            0.0f64,
+            0.0f64,
+            (base.width - 1) as f64,
+            (base.height - 1) as f64,
+        );
+        if let Some(a) = s
+            .lod
+            .clipmap()
+            .and_then(|cm| cm.levels().iter().rev().find_map(|l| l.regions.active))
+        {
+            c0 = c0.max(a.x0 as f64);
+            r0 = r0.max(a.y0 as f64);
+            c1 = c1.min(a.x1 as f64);
+            r1 = r1.min(a.y1 as f64);
+        }
+        let a = w.to_world(c0, r0, 0.0);
+        let b = w.to_world(c1, r1, 0.0);
+        Domain {
+            rect: [a.x.min(b.x), a.y.min(b.y), a.x.max(b.x), a.y.max(b.y)],
+            top: base.max as f64 * w.vertical_scale,
+            step: 0.25 * w.cell[0].min(w.cell[1]),
+        }
+    }
+
+    fn contains(&self, p: DVec3) -> bool {
+        let [x0, y0, x1, y1] = self.rect;
+        p.x >= x0 && p.x <= x1 && p.y >= y0 && p.y <= y1
+    }
+}
+
+/// Classifies the background pixel whose centre ray is `dir` from
+/// `camera`'s eye, against `surface`, the LOD's own triangles (see the
+/// module documentation). The ray counts between the near and the far
+/// plane.
+pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain) -> Candidate {
+    let forward = (camera.target - camera.eye).normalize();
+    let cos = dir.dot(forward);
+    if cos <= 0.0 {
+        return Candidate::LodSky;
+    }
+    // Ray parameters of the near and far planes.
+    let (t_near, t_far) = (camera.near / cos, camera.far / cos);
+    if let Some(hit) = surface.ray_hit(camera.eye, dir) {
+        if hit.t >= t_near && hit.t <= t_far {
+            return Candidate::Hole;
+        }
+    }
+    // Along the ray, over the map and below the terrain's top: a place
+    // with no triangle, or the ray under the surface (it got there through
+    // a slit, since it never met the surface).
+    let ground = (dir.x * dir.x + dir.y * dir.y).sqrt();
+    let dt = if ground > 0.0 {
+        domain.step / ground
+    } else {
+        t_far
+    };
+    let mut t = t_near;
+    while t <= t_far {
+        let p = camera.eye + dir * t;
+        if p.z <= domain.top && domain.contains(p) {
+            match surface.height_at(p.x, p.y) {
+                None => return Candidate::Hole,
+                Some(h) if p.z < h => return Candidate::Hole,
+                Some(_) => {}
+            }
+        }
+        // Descending past the top with the ray rising: nothing more to meet.
+        if p.z > domain.top && dir.z >= 0.0 {
+            break;
+        }
+        t += dt;
+    }
+    Candidate::LodSky
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flat 4×4-cell grid of 1 m cells at height 0 (two triangles a
+    /// cell), optionally without one triangle or with its right half
+    /// raised, seen from above and to the south-west.
+    fn grid(skip: Option<usize>, step_up: f64) -> Surface {
+        let mut tris = vec![];
+        for y in 0..4 {
+            for x in 0..4 {
+                let (x, y) = (x as f64, y as f64);
+                // The last column of cells is raised: it does not share the
+                // line x = 3 with the low cells (a slit, as an unstitched
+                // T-junction leaves: two surfaces over one line).
+                let zl = if x >= 3.0 { step_up } else { 0.0 };
+                let a = DVec3::new(x, y, zl);
+                let b = DVec3::new(x + 1.0, y, zl);
+                let c = DVec3::new(x + 1.0, y + 1.0, zl);
+                let d = DVec3::new(x, y + 1.0, zl);
+                tris.push([a, b, c]);
+                tris.push([a, c, d]);
+            }
+        }
+        if let Some(k) = skip {
+            tris.remove(k);
+        }
+        Surface::from_triangles(DVec3::ZERO, tris)
+    }
+
+    fn camera() -> Camera {
+        Camera {
+            eye: DVec3::new(-3.0, -3.0, 3.0),
+            target: DVec3::new(2.0, 2.0, 0.0),
+            fov_y_deg: 60.0,
+            near: 0.01,
+            far: 100.0,
+            aspect: 1.0,
+        }
+    }
+
+    fn domain() -> Domain {
+        Domain {
+            rect: [0.0, 0.0, 4.0, 4.0],
+            top: 2.0,
+            step: 0.25,
+        }
+    }
+
+    #[test]
+    fn a_ray_that_meets_the_surface_is_a_hole() {
+        let cam = camera();
+        let dir = (DVec3::new(1.5, 1.5, 0.0) - cam.eye).normalize();
+        assert_eq!(
+            classify(&grid(None, 0.0), &cam, dir, &domain()),
+            Candidate::Hole
+        );
+    }
+
+    #[test]
+    fn a_removed_triangle_is_a_hole() {
+        let cam = camera();
+        // Triangle 2·(4·1 + 1) + 1 is the upper half of cell (1, 1); aim
+        // at its centroid and drop it: the ray meets the cell below it?
+        // No cell is below, so only the coverage walk finds the hole.
+        let k = 2 * (4 + 1) + 1;
+        let centre = DVec3::new(1.0 + 1.0 / 3.0, 1.0 + 2.0 / 3.0, 0.0);
+        let dir = (centre - cam.eye).normalize();
+        let s = grid(Some(k), 0.0);
+        assert!(s.height_at(centre.x, centre.y).is_none());
+        assert_eq!(classify(&s, &cam, dir, &domain()), Candidate::Hole);
+    }
+
+    #[test]
+    fn a_slit_between_two_heights_is_a_hole() {
+        // Low cells up to x = 3 at height 0, the last column at 1: a ray
+        // through the vertical slit at x = 3, between heights 0 and 1, ends
+        // inside the raised column, which it meets.
+        let cam = camera();
+        let slit = DVec3::new(3.0, 2.0, 0.5);
+        let dir = (slit - cam.eye).normalize();
+        assert_eq!(
+            classify(&grid(None, 1.0), &cam, dir, &domain()),
+            Candidate::Hole
+        );
+    }
+
+    #[test]
+    fn sky_above_the_surface_everywhere_is_an_lod_difference() {
+        let cam = camera();
+        // Level over the grid at a height of 1.5: above everything.
+        let dir = (DVec3::new(6.0, 6.0, 1.5) - cam.eye).normalize();
+        let s = grid(None, 1.0);
+        assert_eq!(classify(&s, &cam, dir, &domain()), Candidate::LodSky);
+        // Straight up.
+        assert_eq!(classify(&s, &cam, DVec3::Z, &domain()), Candidate::LodSky);
+    }
 }

@@ -73,6 +73,12 @@ pub fn popping(lod: [&Image; 2], reference: [&Image; 2]) -> f64 {
 /// through other background pixels. A silhouette that differs from brute
 /// force is connected to the sky; a crack is enclosed.
 pub fn crack_pixels(lod: &Image, brute: &Image, background: [u8; 3]) -> usize {
+    crack_candidates(lod, brute, background).len()
+}
+
+/// The pixel indices [`crack_pixels`] counts, in scan order: the candidates
+/// the crack survey classifies (`cracks`).
+pub fn crack_candidates(lod: &Image, brute: &Image, background: [u8; 3]) -> Vec<usize> {
     let is_bg = |img: &Image| -> Vec<bool> {
         img.rgba
             .chunks(4)
@@ -83,7 +89,9 @@ pub fn crack_pixels(lod: &Image, brute: &Image, background: [u8; 3]) -> usize {
     let covered: Vec<bool> = is_bg(brute).iter().map(|b| !b).collect();
     let (w, h) = (lod.width as usize, lod.height as usize);
     let inside = enclosed(&bg, w, h);
-    (0..w * h).filter(|&i| inside[i] && covered[i]).count()
+    (0..w * h)
+        .filter(|&i| inside[i] && covered[i])
+        .collect::<Vec<_>>()
 }
 
 /// The pixels of `bg` (a `w`×`h` mask, row-major) that no path of `bg`

@@ -32,7 +32,10 @@ fn no_crack_pixels_in_any_scheme_but_the_annulus() {
     ];
     let r = run(true, &schemes, 200);
     for s in &r.schemes {
-        println!("{}: {} crack px", s.lod, s.crack_pixels);
+        println!(
+            "{}: {} crack px, {} lod-sky px",
+            s.lod, s.crack_pixels, s.lod_sky_pixels
+        );
         assert_eq!(
             s.crack_pixels, 0,
             "{}: {} crack pixels, worst view {} (camera {:?})",
