@@ -135,6 +135,29 @@ mod tests {
         }
     }
 
+    /// α is 1 on each stitched side by itself, whatever the ramp gives
+    /// there: with the boundary well inside the ramp's reach (a region cut
+    /// short of the window), only the stitched sides are raised to 1.
+    #[test]
+    fn each_stitched_side_alone_is_raised_to_one() {
+        let mut p = params([31.0, 31.0]);
+        p.boundary = [10, 12, 50, 52];
+        // The ramp alone gives 0 at these boundary midpoints.
+        let mids = [(10, 31), (31, 12), (50, 31), (31, 52)];
+        p.stitched = [false; 4];
+        for (x, y) in mids {
+            assert_eq!(p.alpha(x, y), 0.0, "({x}, {y})");
+        }
+        for side in 0..4 {
+            p.stitched = [false; 4];
+            p.stitched[side] = true;
+            for (k, &(x, y)) in mids.iter().enumerate() {
+                let want = if k == side { 1.0 } else { 0.0 };
+                assert_eq!(p.alpha(x, y), want, "side {side}: ({x}, {y})");
+            }
+        }
+    }
+
     #[test]
     fn blend_endpoints_are_exact() {
         assert_eq!(blend(3.7, -2.25, 1.0), -2.25);
