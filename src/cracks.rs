@@ -13,8 +13,13 @@
 //! - an **LOD difference** otherwise: the ray passes above the LOD's
 //!   surface everywhere, and brute force's finer ridges hide that sky.
 //!
-//! `crack_pixels` counts holes only; `lod_sky_pixels` the rest. Brute-force
-//! renders are shared by all schemes of one run.
+//! - **far depth** when the ray meets the surface only within 16 ULP of the
+//!   far plane's depth: the depth buffer, cleared to 1.0, cannot keep it
+//!   (steep relief seen over 10^7 m with near = 1 m).
+//!
+//! `crack_pixels` counts holes only; `lod_sky_pixels` and
+//! `far_depth_pixels` the others. Brute-force renders are shared by all
+//! schemes of one run.
 
 use crate::camera::Camera;
 use crate::error::Result;
@@ -44,6 +49,9 @@ pub struct SchemeCracks {
     pub crack_pixels: usize,
     /// Candidates classified as sky past a ridge the LOD made lower.
     pub lod_sky_pixels: usize,
+    /// Candidates whose ray meets the LOD's surface only at a depth the
+    /// depth buffer cannot tell from the far plane ([`Candidate::FarDepth`]).
+    pub far_depth_pixels: usize,
     /// Views with at least one hole.
     pub views_with_cracks: usize,
     /// Views with at least one LOD-sky pixel.
@@ -65,6 +73,8 @@ pub struct CrackReport {
     pub crack_pixels: usize,
     /// LOD-sky pixels over all surveyed schemes.
     pub lod_sky_pixels: usize,
+    /// Far-depth pixels over all surveyed schemes.
+    pub far_depth_pixels: usize,
     pub worst_view: usize,
     pub schemes: Vec<SchemeCracks>,
 }
@@ -103,6 +113,7 @@ pub fn survey(
             lod: s.clone(),
             crack_pixels: 0,
             lod_sky_pixels: 0,
+            far_depth_pixels: 0,
             views_with_cracks: 0,
             views_with_lod_sky: 0,
             worst_view: 0,
@@ -117,7 +128,7 @@ pub fn survey(
             let (frame, _) = s.frame(cam, &mut Passes::default())?;
             let (img, _) = render::draw(&frame, &opts, &mut Passes::default());
             let candidates = metrics::crack_candidates(&img, &reference, [255, 0, 0]);
-            let (mut c, mut sky) = (0, 0);
+            let (mut c, mut sky, mut far) = (0, 0, 0);
             if !candidates.is_empty() {
                 let domain = Domain::of(s);
                 let surface = Surface::new(&frame, &s.world);
@@ -127,11 +138,13 @@ pub fn survey(
                     match classify(&surface, cam, dir, &domain) {
                         Candidate::Hole => c += 1,
                         Candidate::LodSky => sky += 1,
+                        Candidate::FarDepth => far += 1,
                     }
                 }
             }
             r.crack_pixels += c;
             r.lod_sky_pixels += sky;
+            r.far_depth_pixels += far;
             r.views_with_cracks += usize::from(c > 0);
             r.views_with_lod_sky += usize::from(sky > 0);
             if c > r.worst_pixels {
@@ -149,6 +162,7 @@ pub fn survey(
         views: count,
         crack_pixels: out.iter().map(|r| r.crack_pixels).sum(),
         lod_sky_pixels: out.iter().map(|r| r.lod_sky_pixels).sum(),
+        far_depth_pixels: out.iter().map(|r| r.far_depth_pixels).sum(),
         worst_view: worst.map_or(0, |r| r.worst_view),
         schemes: out,
     })
@@ -162,7 +176,16 @@ pub enum Candidate {
     Hole,
     /// The ray passes above the LOD's surface everywhere.
     LodSky,
+    /// The ray meets the LOD's surface only where its depth is within
+    /// [`FAR_DEPTH_BAND`] of 1.0: a Depth32Float buffer cleared to 1.0 and
+    /// tested LESS cannot keep it (brute force's nearer, higher ridge
+    /// covers the pixel at a depth it can keep).
+    FarDepth,
 }
+
+/// 16 ULP of depth just below 1.0 (2^-20): the f32 error of the depth
+/// stage (`gpu::parity::TOLERANCE_DEPTH_ULP` derives it).
+pub const FAR_DEPTH_BAND: f64 = 1.0 / 1_048_576.0;
 
 /// Where the terrain is: the map's world rectangle, the top of its
 /// heights, and the step the ray is sampled at over it (a quarter cell).
@@ -227,6 +250,15 @@ pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain)
     let (t_near, t_far) = (camera.near / cos, camera.far / cos);
     if let Some(hit) = surface.ray_hit(camera.eye, dir) {
         if hit.t >= t_near && hit.t <= t_far {
+            // The depth the hit has in exact arithmetic: within the f32
+            // error of the depth stage (16 ULP below 1.0, the bound
+            // `gpu::parity` derives) of the clear value, the surface is
+            // too close to the far plane for a depth buffer to keep it.
+            let z_view = hit.t * cos;
+            let depth = camera.far * (z_view - camera.near) / (z_view * (camera.far - camera.near));
+            if depth >= 1.0 - FAR_DEPTH_BAND {
+                return Candidate::FarDepth;
+            }
             return Candidate::Hole;
         }
     }
@@ -315,6 +347,20 @@ mod tests {
             classify(&grid(None, 0.0), &cam, dir, &domain()),
             Candidate::Hole
         );
+    }
+
+    /// The same ray with a near plane so close that every depth past it
+    /// lies within 16 ULP of 1.0: the surface is there but no depth buffer
+    /// keeps it.
+    #[test]
+    fn a_surface_at_the_far_planes_depth_is_far_depth() {
+        let mut cam = camera();
+        cam.near = 1e-7;
+        let dir = (DVec3::new(1.5, 1.5, 0.0) - cam.eye).normalize();
+        let s = grid(None, 0.0);
+        assert_eq!(classify(&s, &cam, dir, &domain()), Candidate::FarDepth);
+        cam.near = 0.01;
+        assert_eq!(classify(&s, &cam, dir, &domain()), Candidate::Hole);
     }
 
     #[test]
