@@ -115,29 +115,27 @@ fn bad_images_are_clean_errors() {
     // A PNG header claiming 2^30 × 2^30 pixels, with its chunk's CRC made
     // right, so that the size is what the reader refuses (with the old CRC
     // the decoder stops at a CRC error before reading the size).
-    let mut huge = good[..33].to_vec();
-    huge[16..20].copy_from_slice(&(1u32 << 30).to_be_bytes());
-    huge[20..24].copy_from_slice(&(1u32 << 30).to_be_bytes());
-    let crc = crc32(&huge[12..29]);
-    huge[29..33].copy_from_slice(&crc.to_be_bytes());
-    let huge_path = tmp("huge.png");
-    std::fs::write(&huge_path, &huge).unwrap();
+    let resized = |bytes: &[u8], name: &str, w: u32, h: u32| {
+        let mut b = bytes.to_vec();
+        b[16..20].copy_from_slice(&w.to_be_bytes());
+        b[20..24].copy_from_slice(&h.to_be_bytes());
+        let crc = crc32(&b[12..29]);
+        b[29..33].copy_from_slice(&crc.to_be_bytes());
+        let p = tmp(name);
+        std::fs::write(&p, &b).unwrap();
+        p
+    };
+    let huge = resized(&good[..33], "huge.png", 1 << 30, 1 << 30);
     fails_cleanly(
-        &["info", huge_path.to_str().unwrap()],
+        &["info", huge.to_str().unwrap()],
         "huge.png",
         "Image size exceeds limit",
     );
     // Within the decoder's limits but over the heightmap's (2^28 texels):
     // refused from the header, before the 272 M pixels are decoded.
-    let mut big = good.clone();
-    big[16..20].copy_from_slice(&17_000u32.to_be_bytes());
-    big[20..24].copy_from_slice(&16_000u32.to_be_bytes());
-    let crc = crc32(&big[12..29]);
-    big[29..33].copy_from_slice(&crc.to_be_bytes());
-    let big_path = tmp("big.png");
-    std::fs::write(&big_path, &big).unwrap();
+    let big = resized(&good, "big.png", 17_000, 16_000);
     fails_cleanly(
-        &["info", big_path.to_str().unwrap()],
+        &["info", big.to_str().unwrap()],
         "big.png",
         "dimensions 17000×16000 exceed the limit",
     );
@@ -331,21 +329,20 @@ fn killed_or_failed_renders_leave_the_previous_output_intact() {
     };
     #[cfg(not(unix))]
     let killed = |s: std::process::ExitStatus| !s.success();
+    // Kills a running render and asserts it died of the kill, with the old
+    // output still in place.
+    let kill = |mut child: std::process::Child, when: &str| {
+        child.kill().unwrap_or_else(|e| panic!("{when}: {e}"));
+        let status = child.wait().unwrap();
+        assert!(killed(status), "{when}: killed, not finished: {status:?}");
+        assert_eq!(std::fs::read(&out).unwrap(), before, "{when}");
+    };
 
     // Killed long before its write: the render of an 800×600 frame of the
     // default scene takes far more than 20 ms.
-    let mut child = render(None);
+    let child = render(None);
     std::thread::sleep(Duration::from_millis(20));
-    child
-        .kill()
-        .expect("the render is still running after 20 ms");
-    let status = child.wait().unwrap();
-    assert!(killed(status), "killed, not finished: {status:?}");
-    assert_eq!(
-        std::fs::read(&out).unwrap(),
-        before,
-        "killed before its write"
-    );
+    kill(child, "killed before its write");
 
     // Killed in the middle of its write.
     let mut child = render(Some(120_000));
@@ -359,12 +356,7 @@ fn killed_or_failed_renders_leave_the_previous_output_intact() {
         assert!(t.elapsed() < Duration::from_secs(120), "no write began");
         std::thread::sleep(Duration::from_millis(5));
     }
-    child
-        .kill()
-        .expect("the render is still running: it is stalled in its write");
-    let status = child.wait().unwrap();
-    assert!(killed(status), "killed mid-write: {status:?}");
-    assert_eq!(std::fs::read(&out).unwrap(), before, "killed mid-write");
+    kill(child, "killed mid-write");
     let partial = std::fs::read(&part).unwrap();
     assert!(
         image::load_from_memory(&partial).is_err(),
