@@ -73,3 +73,57 @@ fn the_detector_sees_annulus_and_unmorphed_cracks() {
         );
     }
 }
+
+/// A real frame with triangles removed: every candidate the removal makes
+/// is classified a hole, none LOD sky or far depth. The removed triangles
+/// are one clipmap level's (a ring under the view), drawn with NaN
+/// positions, which the rasteriser drops; the reference is the same frame
+/// whole.
+#[test]
+fn removed_triangles_are_holes() {
+    use terraclip::cracks::{classify, Domain};
+    use terraclip::render::{draw, RenderOptions, Session};
+    use terraclip::stats::Passes;
+    let s = terraclip::cracks::survey_scene(&scene(true), [160, 100]);
+    let mut session = Session::new(&s, &mut Passes::default()).unwrap();
+    let cam = s.camera();
+    let (frame, _) = session.frame(&cam, &mut Passes::default()).unwrap();
+    let opts = RenderOptions::default();
+    let (whole, _) = draw(&frame, &opts, &mut Passes::default());
+    let mut holed = frame.clone();
+    // The triangles whose vertices all project within the middle fifth of
+    // the frame: a hole the terrain around it encloses.
+    let central = |i: usize| {
+        let c = frame.uniforms.clip(frame.positions[i]);
+        c[3] > 0.0 && (c[0] / c[3]).abs() < 0.2 && (c[1] / c[3]).abs() < 0.2
+    };
+    let mut removed = 0;
+    for t in 0..frame.triangle_count() {
+        if (3 * t..3 * t + 3).all(central) {
+            removed += 1;
+            for i in 3 * t..3 * t + 3 {
+                holed.positions[i] = [f32::NAN; 3];
+            }
+        }
+    }
+    assert!(removed > 0);
+    let (img, _) = draw(&holed, &opts, &mut Passes::default());
+    let candidates = terraclip::metrics::crack_candidates(&img, &whole, [255, 0, 0]);
+    assert!(candidates.len() > 10, "{} candidates", candidates.len());
+    let surface = terraclip::surface::Surface::new(&holed, &session.world);
+    let domain = Domain::of(&session);
+    let size = [img.width, img.height];
+    let mut kinds = std::collections::HashMap::new();
+    for &p in &candidates {
+        let (px, py) = (p % img.width as usize, p / img.width as usize);
+        let dir = cam.ray_through(size, px as f64 + 0.5, py as f64 + 0.5);
+        *kinds
+            .entry(format!("{:?}", classify(&surface, &cam, dir, &domain)))
+            .or_insert(0) += 1;
+    }
+    println!(
+        "{removed} removed triangles: {} candidates, {kinds:?}",
+        candidates.len()
+    );
+    assert_eq!(kinds.get("Hole"), Some(&candidates.len()), "{kinds:?}");
+}
