@@ -331,7 +331,13 @@ fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
 /// - a missing clipmap level (its triangles dropped);
 /// - a morph off by one level (a level drawn with the coarsest level's
 ///   constants, which disable the morph: α = 0 throughout its band);
-/// - a toroid one texel off (a level's heights read one texel east).
+/// - a toroid one texel off (a level's heights read one texel east);
+/// - the whole frame one pixel over.
+///
+/// The last three are made for every visible level (1–4 in this view),
+/// and each fails on the tie band ([`parity::tie_band`]) alone, the
+/// budgets aside. A conforming difference (vertices moved a fraction of
+/// the sub-pixel precision) passes.
 #[test]
 fn tolerance_mode_fails_real_defects_at_the_golden_size() {
     use terraclip::render::{draw, RenderOptions, Session};
@@ -346,18 +352,58 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
     let render = |f: &terraclip::frame::Frame| draw(f, &opts, &mut Passes::default()).0;
     let want = render(&frame);
     let px = (want.width * want.height) as usize;
+    // The tie band of the reference frame, as `check-gpu` computes it.
+    let band = {
+        let u = &frame.uniforms;
+        let clip: Vec<[f32; 4]> = frame.positions.iter().map(|&p| u.clip(p)).collect();
+        let r = terraclip::render::rasterise_frame(&frame, &clip, terraclip::raster::Path::Scalar);
+        parity::tie_band(&r, frame.effects.wireframe)
+    };
+    let in_band = band.iter().filter(|&&b| b).count();
+    println!("tie band: {in_band} of {px} pixels");
     let check = |what: &str, got: &terraclip::render::Image| {
-        let d = parity::Difference::of(&want, got);
+        let d = parity::Difference::within(&want, got, Some(&band));
         println!(
-            "{what}: {} shifted, {} unmatched of {px} (budgets {:.0} and {:.0})",
+            "{what}: {} shifted, {} unmatched, {} outside the tie band, of {px} (budgets {:.0} and {:.0})",
             d.shifted_px,
             d.unmatched_px,
+            d.outside_band_px,
             parity::TOLERANCE_SHIFTED_FRACTION * px as f64,
             parity::TOLERANCE_UNMATCHED_FRACTION * px as f64
         );
         assert!(!d.passes(false, px), "{what} passes tolerance mode: {d:?}");
+        assert!(
+            d.outside_band_px > 0,
+            "{what}: nothing outside the tie band"
+        );
         assert!(!d.passes(true, px), "{what} passes exact mode");
     };
+
+    // What a conforming GPU may do passes: every vertex moved by a fraction
+    // of the 1/16 px Vulkan allows. Positions are scaled by 1 + 2^-14 about
+    // the frame's floating origin, about 900 m from the eye here, so a
+    // vertex 1 km or more away (all of this view's terrain) moves by about
+    // 0.05 px or less. 14 pixels shift, every one inside the tie band.
+    let mut nudged = frame.clone();
+    for p in &mut nudged.positions {
+        for c in p.iter_mut() {
+            *c *= 1.0 + 1.0 / 16_384.0;
+        }
+    }
+    let d = parity::Difference::within(&want, &render(&nudged), Some(&band));
+    println!("vertices nudged: {d:?}");
+    assert!(d.passes(false, px), "a conforming difference fails: {d:?}");
+    // The whole frame one pixel to the right: a shift everywhere, which no
+    // tie explains.
+    let mut moved = want.clone();
+    for y in 0..540 {
+        for x in (1..960).rev() {
+            let (i, j) = (y * 960 + x, y * 960 + x - 1);
+            moved.depth[i] = want.depth[j];
+            moved.rgba.copy_within(4 * j..4 * j + 4, 4 * i);
+        }
+    }
+    check("the frame one pixel over", &moved);
 
     // A crack line: the first row whose pixels are all terrain.
     let row = (0..want.height as usize)
@@ -401,10 +447,7 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
         render(&g)
     };
     let mut tested = 0;
-    // Levels 1–3 hold the view's near and middle distance; past them a
-    // level's defects shrink to depth differences of a few dozen ULP on a
-    // few hundred pixels, inside the unmatched budget (docs/testing.md).
-    for &level in levels.iter().filter(|&&l| l != coarsest && l <= 3) {
+    for &level in levels.iter().filter(|&&l| l != coarsest) {
         let missing = edit(level, &|_| None);
         if missing.rgba == want.rgba {
             // Drawn but culled or hidden from this view: nothing to lose.
