@@ -10,12 +10,12 @@
 //!   over the map and below the terrain's top, crosses a place no triangle
 //!   covers (a missing triangle) or runs under the surface without having
 //!   met it (through a T-junction's slit);
+//! - **far depth** when, with no hole before it, the ray first meets the
+//!   surface within 16 ULP of the far plane's depth: the depth buffer,
+//!   cleared to 1.0, cannot keep it (steep relief seen over 10^7 m with
+//!   near = 1 m);
 //! - an **LOD difference** otherwise: the ray passes above the LOD's
 //!   surface everywhere, and brute force's finer ridges hide that sky.
-//!
-//! - **far depth** when the ray meets the surface only within 16 ULP of the
-//!   far plane's depth: the depth buffer, cleared to 1.0, cannot keep it
-//!   (steep relief seen over 10^7 m with near = 1 m).
 //!
 //! `crack_pixels` counts holes only; `lod_sky_pixels` and
 //! `far_depth_pixels` the others. Brute-force renders are shared by all
@@ -248,31 +248,32 @@ pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain)
     }
     // Ray parameters of the near and far planes.
     let (t_near, t_far) = (camera.near / cos, camera.far / cos);
-    if let Some(hit) = surface.ray_hit(camera.eye, dir) {
-        if hit.t >= t_near && hit.t <= t_far {
-            // The depth the hit has in exact arithmetic: within the f32
-            // error of the depth stage (16 ULP below 1.0, the bound
-            // `gpu::parity` derives) of the clear value, the surface is
-            // too close to the far plane for a depth buffer to keep it.
-            let z_view = hit.t * cos;
-            let depth = camera.far * (z_view - camera.near) / (z_view * (camera.far - camera.near));
-            if depth >= 1.0 - FAR_DEPTH_BAND {
-                return Candidate::FarDepth;
-            }
+    let hit = surface
+        .ray_hit(camera.eye, dir)
+        .filter(|h| h.t >= t_near && h.t <= t_far);
+    if let Some(h) = hit {
+        // The depth the hit has in exact arithmetic. Within the f32 error
+        // of the depth stage (16 ULP below 1.0, the bound `gpu::parity`
+        // derives) of the clear value, the surface is too close to the far
+        // plane for a depth buffer to keep; anywhere nearer it is a hole.
+        let z_view = h.t * cos;
+        let depth = camera.far * (z_view - camera.near) / (z_view * (camera.far - camera.near));
+        if depth < 1.0 - FAR_DEPTH_BAND {
             return Candidate::Hole;
         }
     }
-    // Along the ray, over the map and below the terrain's top: a place
-    // with no triangle, or the ray under the surface (it got there through
-    // a slit, since it never met the surface).
+    // Along the ray up to that hit (or the far plane), over the map and
+    // below the terrain's top: a place with no triangle, or the ray under
+    // the surface (it got there through a slit, since it met nothing).
+    let end = hit.map_or(t_far, |h| h.t);
     let ground = (dir.x * dir.x + dir.y * dir.y).sqrt();
     let dt = if ground > 0.0 {
         domain.step / ground
     } else {
-        t_far
+        end
     };
     let mut t = t_near;
-    while t <= t_far {
+    while t < end {
         let p = camera.eye + dir * t;
         if p.z <= domain.top && domain.contains(p) {
             match surface.height_at(p.x, p.y) {
@@ -281,13 +282,17 @@ pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain)
                 Some(_) => {}
             }
         }
-        // Descending past the top with the ray rising: nothing more to meet.
+        // Past the top with the ray rising: nothing more to meet.
         if p.z > domain.top && dir.z >= 0.0 {
             break;
         }
         t += dt;
     }
-    Candidate::LodSky
+    if hit.is_some() {
+        Candidate::FarDepth
+    } else {
+        Candidate::LodSky
+    }
 }
 
 #[cfg(test)]
