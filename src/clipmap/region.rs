@@ -318,6 +318,23 @@ pub fn check_n(n: i64) -> Result<(), String> {
 mod tests {
     use super::*;
 
+    /// Containment is inclusive on every side and fails when any one side
+    /// of the inner rectangle crosses the outer one's (`minus` asserts it).
+    #[test]
+    fn contains_checks_every_side() {
+        let r = Rect::new(0, 10, 20, 40);
+        assert!(r.contains(&r));
+        assert!(r.contains(&Rect::new(5, 15, 10, 30)));
+        for o in [
+            Rect::new(-1, 15, 10, 30),
+            Rect::new(5, 9, 10, 30),
+            Rect::new(5, 15, 21, 30),
+            Rect::new(5, 15, 10, 41),
+        ] {
+            assert!(!r.contains(&o), "{o:?}");
+        }
+    }
+
     #[test]
     fn n_validation() {
         for n in [15, 31, 63, 127, 255, 4095] {
