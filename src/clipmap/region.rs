@@ -335,6 +335,31 @@ mod tests {
         }
     }
 
+    /// Points on every side count; one step past any side does not.
+    #[test]
+    fn contains_point_is_inclusive() {
+        let r = Rect::new(0, 10, 20, 40);
+        for (x, y) in [(0, 10), (20, 40), (0, 40), (20, 10), (7, 23)] {
+            assert!(r.contains_point(x, y), "({x}, {y})");
+        }
+        for (x, y) in [(-1, 20), (21, 20), (5, 9), (5, 41)] {
+            assert!(!r.contains_point(x, y), "({x}, {y})");
+        }
+    }
+
+    /// Each side moves in by d, except the sides that lie on the bounds'.
+    #[test]
+    fn erode_within_keeps_the_sides_on_the_bounds() {
+        let r = Rect::new(0, 10, 20, 40);
+        let inside = Rect::new(-100, -100, 100, 100);
+        assert_eq!(r.erode_within(3, &inside), Rect::new(3, 13, 17, 37));
+        assert_eq!(r.erode_within(3, &r), r);
+        let left_top = Rect::new(0, 10, 100, 100);
+        assert_eq!(r.erode_within(3, &left_top), Rect::new(0, 10, 17, 37));
+        let right_bottom = Rect::new(-100, -100, 20, 40);
+        assert_eq!(r.erode_within(3, &right_bottom), Rect::new(3, 13, 20, 40));
+    }
+
     #[test]
     fn n_validation() {
         for n in [15, 31, 63, 127, 255, 4095] {
