@@ -335,6 +335,16 @@ mod tests {
         }
     }
 
+    /// The map cropped to the coarsest spacing: (w − 1) and (h − 1) rounded
+    /// down to a multiple of 2^(L−1), with sizes on both sides of a multiple.
+    #[test]
+    fn map_bounds_round_down_to_the_coarsest_spacing() {
+        assert_eq!(map_bounds(700, 530, 8), Rect::new(0, 0, 640, 512));
+        assert_eq!(map_bounds(256, 128, 8), Rect::new(0, 0, 128, 0));
+        assert_eq!(map_bounds(257, 129, 8), Rect::new(0, 0, 256, 128));
+        assert_eq!(map_bounds(5, 5, 1), Rect::new(0, 0, 4, 4));
+    }
+
     /// Points on every side count; one step past any side does not.
     #[test]
     fn contains_point_is_inclusive() {
