@@ -134,13 +134,18 @@ pub fn rasterise_frame(frame: &Frame, clip: &[[f32; 4]], path: raster::Path) -> 
     raster::rasterise(&mesh, frame.width, frame.height, &Options { path })
 }
 
+/// The vertex stage's clip positions, then [`rasterise_frame`]: the raster
+/// [`draw`] shades, for callers that need its triangles (the tie band of
+/// `check-gpu`).
+pub fn raster(frame: &Frame, path: raster::Path) -> raster::Raster {
+    let u = &frame.uniforms;
+    let clip: Vec<[f32; 4]> = frame.positions.par_iter().map(|&p| u.clip(p)).collect();
+    rasterise_frame(frame, &clip, path)
+}
+
 /// Rasterises and shades a frame on the CPU.
 pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image, RasterStats) {
-    let r = passes.time("raster", || {
-        let u = &frame.uniforms;
-        let clip: Vec<[f32; 4]> = frame.positions.par_iter().map(|&p| u.clip(p)).collect();
-        rasterise_frame(frame, &clip, opts.path)
-    });
+    let r = passes.time("raster", || raster(frame, opts.path));
     let rgba = passes.time("shade", || {
         let inputs = ShadeInputs {
             effects: &frame.effects,

@@ -353,12 +353,10 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
     let want = render(&frame);
     let px = (want.width * want.height) as usize;
     // The tie band of the reference frame, as `check-gpu` computes it.
-    let band = {
-        let u = &frame.uniforms;
-        let clip: Vec<[f32; 4]> = frame.positions.iter().map(|&p| u.clip(p)).collect();
-        let r = terraclip::render::rasterise_frame(&frame, &clip, terraclip::raster::Path::Scalar);
-        parity::tie_band(&r, frame.effects.wireframe)
-    };
+    let band = parity::tie_band(
+        &terraclip::render::raster(&frame, terraclip::raster::Path::Scalar),
+        frame.effects.wireframe,
+    );
     let in_band = band.iter().filter(|&&b| b).count();
     println!("tie band: {in_band} of {px} pixels");
     let check = |what: &str, got: &terraclip::render::Image| {

@@ -458,14 +458,7 @@ pub fn check(
         }
         // GL reads back no depth: compare colour alone there; anywhere else
         // a readback without depth is a failure (`size_mismatch`).
-        let band = {
-            let u = &frame.uniforms;
-            let clip: Vec<[f32; 4]> = frame.positions.iter().map(|&p| u.clip(p)).collect();
-            tie_band(
-                &render::rasterise_frame(&frame, &clip, opts.path),
-                frame.effects.wireframe,
-            )
-        };
+        let band = tie_band(&render::raster(&frame, opts.path), frame.effects.wireframe);
         let d = if r.gpu.api == super::Api::Gl {
             let colour = Image {
                 depth: vec![],
