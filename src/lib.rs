@@ -4,13 +4,15 @@
 //! (Losasso & Hoppe 2004; GPU Gems 2 ch. 2; Holkner; Brettell).
 //!
 //! ## Usage
-//! Load a [`heightmap::Heightmap`], build a [`pyramid::Pyramid`], create a
-//! [`clipmap::Clipmap`], call [`clipmap::Clipmap::update`] with the viewer and
-//! [`clipmap::Clipmap::meshes`] for the frame's geometry.
+//! Parse or build a [`Scene`], open a [`Session`] on it (the terrain and its
+//! pyramid are built once, the LOD scheme is kept across frames) and call
+//! [`Session::render`] with a camera for each frame; it returns the
+//! [`Image`] (RGBA8 and Depth32Float) and its [`RenderStats`]. The README's
+//! example runs as a doctest.
 //!
 //! ## Implementation
-//! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame.
-//! See `README.md` for the pipeline and the CLI.
+//! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame →
+//! raster → shade. `docs/architecture.md` describes the stages.
 
 pub mod camera;
 pub mod clipmap;
@@ -40,4 +42,13 @@ pub mod vertex;
 pub mod views;
 pub mod world;
 
+pub use camera::Camera;
 pub use error::{Error, Result};
+pub use render::{Image, RenderOptions, RenderStats, Session};
+pub use scene::Scene;
+pub use stats::Passes;
+
+/// The README's code blocks, compiled and run by `cargo test --doc`.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

@@ -9,6 +9,8 @@ use terraclip::raster::Path as RasterPath;
 use terraclip::render::{render, RenderOptions};
 use terraclip::scene::Scene;
 
+mod common;
+
 #[test]
 fn every_golden_matches_for_any_thread_count_and_path() {
     let diff_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/golden-diff");
@@ -177,15 +179,7 @@ fn goldens_compare_depth_as_well_as_colour() {
     assert_ne!(depth_hash(&[0.0]), depth_hash(&[-0.0]));
 
     let dir = std::env::temp_dir().join(format!("terraclip-golden-depth-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
-    for ext in ["toml", "png", "depth"] {
-        std::fs::copy(
-            src.join(format!("level-tint.{ext}")),
-            dir.join(format!("level-tint.{ext}")),
-        )
-        .unwrap();
-    }
+    common::copy_golden("level-tint", &dir, "level-tint");
     let scene = dir.join("level-tint.toml");
     let depth = dir.join("level-tint.depth");
     let opts = RenderOptions::default();

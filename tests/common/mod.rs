@@ -136,3 +136,17 @@ pub fn watertight(cm: &Clipmap) -> Result<usize, String> {
     }
     Ok(triangles)
 }
+
+/// Copies golden scene `name` (scene, PNG and depth hash) into `dir` as
+/// `as_name`, so a command can check that one scene alone.
+pub fn copy_golden(name: &str, dir: &std::path::Path, as_name: &str) {
+    std::fs::create_dir_all(dir).unwrap();
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("golden");
+    for ext in ["toml", "png", "depth"] {
+        std::fs::copy(
+            src.join(format!("{name}.{ext}")),
+            dir.join(format!("{as_name}.{ext}")),
+        )
+        .unwrap();
+    }
+}
