@@ -2,8 +2,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::sync::Arc;
 use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout};
-use terraclip::heightmap::procedural::Procedural;
 use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::terrain::procedural::Procedural;
 
 fn bench(c: &mut Criterion) {
     let map = Procedural::new(1, 2049, 2049).generate().unwrap();
@@ -40,7 +40,7 @@ fn bench(c: &mut Criterion) {
 /// Issue 7's update case: n = 255, L = 10, one texel per frame, against a
 /// full rebuild of every level (the `scaling` command's map).
 fn bench_n255_l10(c: &mut Criterion) {
-    let pyramid = Arc::new(terraclip::scaling::update_map(255, 10).unwrap());
+    let pyramid = Arc::new(terraclip::studies::scaling::update_map(255, 10).unwrap());
     let centre = [
         pyramid.levels[0].width as f64 / 2.0,
         pyramid.levels[0].height as f64 / 2.0,

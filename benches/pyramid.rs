@@ -2,9 +2,9 @@
 //! procedural map of similar size); procedural generation, eager and as
 //! lazy tiles under a clipmap's first windows.
 use criterion::{criterion_group, criterion_main, Criterion};
-use terraclip::heightmap::procedural::Procedural;
-use terraclip::heightmap::Heightmap;
 use terraclip::pyramid::{Filter, LazyBase, Pyramid};
+use terraclip::terrain::procedural::Procedural;
+use terraclip::terrain::Heightmap;
 
 fn bench(c: &mut Criterion) {
     let etopo = std::path::Path::new("../shared/data/dem/etopo5_16.png");

@@ -2,10 +2,10 @@
 //! once; this times what a back end does per frame).
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use terraclip::frame::stats::Passes;
 use terraclip::raster::Path;
 use terraclip::render::{build_frame, draw, RenderOptions};
 use terraclip::scene::Scene;
-use terraclip::stats::Passes;
 
 fn bench(c: &mut Criterion) {
     let mut s = Scene::default_scene();

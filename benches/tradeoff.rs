@@ -2,14 +2,14 @@
 //! a 1025² map, so the schemes' LOD costs compare side by side in one run.
 //! The full error-against-time sweep is `terraclip tradeoff`.
 use criterion::{criterion_group, criterion_main, Criterion};
+use terraclip::frame::stats::Passes;
 use terraclip::lod::View;
 use terraclip::render::Session;
 use terraclip::scene::Scene;
-use terraclip::stats::Passes;
 
 fn bench(c: &mut Criterion) {
     let base = Scene::default_scene();
-    for &spec in terraclip::cracks::ALL {
+    for &spec in terraclip::studies::cracks::ALL {
         let scene = base.with_lod(spec).expect("valid scheme");
         let mut s = Session::new(&scene, &mut Passes::default()).expect("session");
         let start = scene.camera();
@@ -18,7 +18,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&format!("update_{name}"), |b| {
             b.iter(|| {
                 i += 1;
-                let cam = terraclip::views::path_camera(&start, i % 400, 5.0);
+                let cam = terraclip::studies::views::path_camera(&start, i % 400, 5.0);
                 let f = cam.frustum();
                 let view = View {
                     camera: &cam,

@@ -14,39 +14,26 @@
 //! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame →
 //! raster → shade. `docs/architecture.md` describes the stages.
 
-pub mod camera;
+pub mod check;
 pub mod clipmap;
-pub mod cracks;
-pub mod diagram;
 pub mod error;
-pub mod fly;
 pub mod frame;
-pub mod golden;
 #[cfg(feature = "gpu")]
 pub mod gpu;
-pub mod heightmap;
-pub mod huge;
 pub mod lod;
-pub mod metrics;
 pub mod pyramid;
 pub mod raster;
 pub mod render;
-pub mod report;
-pub mod scaling;
 pub mod scene;
 pub mod shade;
-pub mod stats;
-pub mod surface;
-pub mod tradeoff;
-pub mod vertex;
-pub mod views;
-pub mod world;
+pub mod studies;
+pub mod terrain;
 
-pub use camera::Camera;
 pub use error::{Error, Result};
+pub use frame::stats::Passes;
 pub use render::{Image, RenderOptions, RenderStats, Session};
+pub use scene::camera::Camera;
 pub use scene::Scene;
-pub use stats::Passes;
 
 /// The README's code blocks, compiled and run by `cargo test --doc`.
 #[doc = include_str!("../README.md")]

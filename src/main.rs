@@ -4,9 +4,9 @@ use clap::{Parser, Subcommand};
 use serde_json::json;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use terraclip::heightmap::Heightmap;
 use terraclip::render::{self, RenderOptions};
 use terraclip::scene::{Overrides, Scene};
+use terraclip::terrain::Heightmap;
 
 #[derive(Parser)]
 #[command(
@@ -60,8 +60,8 @@ struct ScalingArgs {
 }
 
 impl ScalingArgs {
-    fn options(&self) -> terraclip::scaling::Options {
-        terraclip::scaling::Options {
+    fn options(&self) -> terraclip::studies::scaling::Options {
+        terraclip::studies::scaling::Options {
             sizes: self.sizes.clone(),
             n: self.n,
             levels: self.levels,
@@ -420,7 +420,8 @@ fn render_cmd(
 
 #[cfg(feature = "gpu")]
 fn gpu_render(s: &Scene) -> anyhow::Result<(render::Image, render::RenderStats)> {
-    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    use terraclip::check::parity;
+    use terraclip::gpu::{Api, Gpu, GpuRenderer};
     let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
     Ok(parity::render(&mut r, s)?)
 }
@@ -434,7 +435,7 @@ fn gpu_render(_: &Scene) -> anyhow::Result<(render::Image, render::RenderStats)>
 #[cfg(feature = "gpu")]
 fn scene_list(scenes: &[PathBuf]) -> anyhow::Result<Vec<(String, Scene)>> {
     let paths = if scenes.is_empty() {
-        terraclip::golden::scenes(std::path::Path::new("golden"))?
+        terraclip::check::golden::scenes(std::path::Path::new("golden"))?
     } else {
         scenes.to_vec()
     };
@@ -458,7 +459,8 @@ fn check_gpu_cmd(
     step: f64,
     json: bool,
 ) -> anyhow::Result<()> {
-    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    use terraclip::check::parity;
+    use terraclip::gpu::{Api, Gpu, GpuRenderer};
     let api = Api::parse(api)
         .ok_or_else(|| anyhow::anyhow!("--api must be vulkan or gl, got '{api}'"))?;
     let list = scene_list(scenes)?;
@@ -513,7 +515,8 @@ fn bench_cmd(
     size: [u32; 2],
     json: bool,
 ) -> anyhow::Result<()> {
-    use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+    use terraclip::check::parity;
+    use terraclip::gpu::{Api, Gpu, GpuRenderer};
     if frames == 0 || repeats == 0 {
         anyhow::bail!("--frames and --repeats must be at least 1");
     }
@@ -550,7 +553,7 @@ fn progress(len: usize, what: &str) -> indicatif::ProgressBar {
 /// "all", a list, or the scene's own scheme.
 fn scheme_list(lod: &Option<String>, s: &Scene) -> Vec<String> {
     match lod.as_deref() {
-        Some("all") => terraclip::cracks::ALL
+        Some("all") => terraclip::studies::cracks::ALL
             .iter()
             .map(|s| s.to_string())
             .collect(),
@@ -574,7 +577,7 @@ fn cracks_cmd(
     let s = load_scene(scene)?;
     let schemes = scheme_list(lod, &s);
     let bar = progress(views, "cracks");
-    let r = terraclip::cracks::survey(&s, &schemes, views, size, || bar.inc(1))?;
+    let r = terraclip::studies::cracks::survey(&s, &schemes, views, size, || bar.inc(1))?;
     bar.finish_and_clear();
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
@@ -607,7 +610,7 @@ fn cracks_cmd(
 }
 
 fn scaling_cmd(args: &ScalingArgs) -> anyhow::Result<()> {
-    use terraclip::scaling;
+    use terraclip::studies::scaling;
     let s = load_scene(&args.scene)?;
     let opts = args.options();
     let bar = progress(0, "scaling");
@@ -691,7 +694,7 @@ fn tradeoff_cmd(
     quick: bool,
     json: bool,
 ) -> anyhow::Result<()> {
-    use terraclip::tradeoff;
+    use terraclip::studies::tradeoff;
     if path_frames < 2 {
         anyhow::bail!("--path-frames must be at least 2");
     }
@@ -783,7 +786,7 @@ fn fly_cmd(
     }
     let bar = progress(frames, "fly");
     let mut kept = Vec::new();
-    let report = terraclip::fly::fly(&s, frames, step, !no_popping, |i, img| {
+    let report = terraclip::studies::fly::fly(&s, frames, step, !no_popping, |i, img| {
         bar.inc(1);
         if let Some(dir) = out {
             terraclip::error::write_atomic(&dir.join(format!("frame_{i:04}.png")), &img.png()?)?;
@@ -795,7 +798,10 @@ fn fly_cmd(
     })?;
     bar.finish_and_clear();
     if let (Some(dir), true) = (out, gif) {
-        terraclip::error::write_atomic(&dir.join("fly.gif"), &terraclip::fly::gif(&kept)?)?;
+        terraclip::error::write_atomic(
+            &dir.join("fly.gif"),
+            &terraclip::studies::fly::gif(&kept)?,
+        )?;
     }
     if json {
         println!("{}", serde_json::to_value(&report)?);
@@ -821,7 +827,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             diff_dir,
             json,
         }) => {
-            let results = terraclip::golden::check(&dir, bless, Some(&diff_dir))?;
+            let results = terraclip::check::golden::check(&dir, bless, Some(&diff_dir))?;
             if json {
                 println!("{}", json!({ "scenes": results }));
             } else {
@@ -941,7 +947,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let s = load_scene(&scene)?;
             let (_, cm, world) = s.build_clipmap()?;
             let cam = s.camera();
-            let png = terraclip::diagram::draw(&cm, Some((&cam, &world)), size)?;
+            let png = terraclip::studies::diagram::draw(&cm, Some((&cam, &world)), size)?;
             terraclip::error::write_atomic(&out, &png)?;
             let active = cm.levels().iter().filter(|l| l.is_active()).count();
             if json {

@@ -1,14 +1,14 @@
 //! Cracks in screen space, for every LOD scheme: renders over a red
 //! background from random viewpoints show 0 background pixels enclosed by
 //! terrain where a brute-force render covers them
-//! (`terraclip::metrics::crack_pixels`; a silhouette difference is connected
+//! (`terraclip::studies::metrics::crack_pixels`; a silhouette difference is connected
 //! to the sky, a crack is enclosed). The detector must be able to fail: the
 //! draping annulus (T-junctions between rings) and clipmaps or CDLOD with
 //! morph off show cracks.
 
 mod common;
-use terraclip::cracks::{survey, CrackReport};
 use terraclip::scene::Scene;
+use terraclip::studies::cracks::{survey, CrackReport};
 
 fn scene(morph: bool) -> Scene {
     let mut s = common::small_scene();
@@ -81,10 +81,10 @@ fn the_detector_sees_annulus_and_unmorphed_cracks() {
 /// whole.
 #[test]
 fn removed_triangles_are_holes() {
-    use terraclip::cracks::{classify, Domain};
+    use terraclip::frame::stats::Passes;
     use terraclip::render::{draw, RenderOptions, Session};
-    use terraclip::stats::Passes;
-    let s = terraclip::cracks::survey_scene(&scene(true), [160, 100]);
+    use terraclip::studies::cracks::{classify, Domain};
+    let s = terraclip::studies::cracks::survey_scene(&scene(true), [160, 100]);
     let mut session = Session::new(&s, &mut Passes::default()).unwrap();
     let cam = s.camera();
     let (frame, _) = session.frame(&cam, &mut Passes::default()).unwrap();
@@ -108,9 +108,9 @@ fn removed_triangles_are_holes() {
     }
     assert!(removed > 0);
     let (img, _) = draw(&holed, &opts, &mut Passes::default());
-    let candidates = terraclip::metrics::crack_candidates(&img, &whole, [255, 0, 0]);
+    let candidates = terraclip::studies::metrics::crack_candidates(&img, &whole, [255, 0, 0]);
     assert!(candidates.len() > 10, "{} candidates", candidates.len());
-    let surface = terraclip::surface::Surface::new(&holed, &session.world);
+    let surface = terraclip::frame::surface::Surface::new(&holed, &session.world);
     let domain = Domain::of(&session);
     let size = [img.width, img.height];
     let mut kinds = std::collections::HashMap::new();

@@ -5,9 +5,9 @@ mod common;
 use glam::DVec3;
 use proptest::prelude::*;
 use std::collections::HashSet;
-use terraclip::camera::{Camera, Frustum};
 use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
-use terraclip::world::WorldMap;
+use terraclip::scene::camera::{Camera, Frustum};
+use terraclip::terrain::world::WorldMap;
 
 fn tri_key(t: &[MeshVertex; 3]) -> [(i64, i64); 3] {
     t.map(|v| (v.x, v.y))

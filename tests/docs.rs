@@ -147,7 +147,7 @@ fn tmp(name: &str) -> PathBuf {
 fn lazy_scene() -> PathBuf {
     let base = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/src/default_scene.toml"
+        "/src/scene/default.toml"
     ))
     .unwrap();
     let scene = base.replace(

@@ -14,8 +14,8 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use terraclip::heightmap::Heightmap;
 use terraclip::scene::Scene;
+use terraclip::terrain::Heightmap;
 
 /// xorshift64*: the harness must be reproducible.
 struct Rng(u64);

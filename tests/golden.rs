@@ -4,7 +4,7 @@
 //! difference images go to target/golden-diff.
 
 use std::path::Path;
-use terraclip::golden::{check_one, scenes};
+use terraclip::check::golden::{check_one, scenes};
 use terraclip::raster::Path as RasterPath;
 use terraclip::render::{render, RenderOptions};
 use terraclip::scene::Scene;
@@ -170,7 +170,7 @@ fn terraclip_simd_selects_the_path() {
 /// unchanged; `--bless` writes the file back.
 #[test]
 fn goldens_compare_depth_as_well_as_colour() {
-    use terraclip::golden::depth_hash;
+    use terraclip::check::golden::depth_hash;
     let d = vec![0.25f32, 0.5, 1.0];
     let mut e = d.clone();
     e[1] = f32::from_bits(e[1].to_bits() + 1);
@@ -214,7 +214,7 @@ fn the_morph_off_golden_cracks_and_morph_on_does_not() {
         let s = golden_scene(name);
         let (img, _) = render(&s, &opts).unwrap();
         let (bf, _) = render(&s.with_lod("brute-force").unwrap(), &opts).unwrap();
-        terraclip::metrics::crack_pixels(&img, &bf, [255, 0, 0])
+        terraclip::studies::metrics::crack_pixels(&img, &bf, [255, 0, 0])
     };
     let (off, on) = (cracks("morph-off"), cracks("morph-on"));
     println!("enclosed background pixels: morph-off {off}, morph-on {on}");

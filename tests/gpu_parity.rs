@@ -7,7 +7,8 @@
 #![cfg(feature = "gpu")]
 
 use std::path::Path;
-use terraclip::gpu::{parity, Api, Gpu, GpuRenderer};
+use terraclip::check::parity;
+use terraclip::gpu::{Api, Gpu, GpuRenderer};
 use terraclip::scene::Scene;
 
 fn required() -> bool {
@@ -56,7 +57,7 @@ fn out() -> std::path::PathBuf {
 fn every_golden_scene_matches_the_cpu() {
     let Some(mut r) = renderer() else { return };
     let exact = r.gpu.exact_expected();
-    let scenes = terraclip::golden::scenes(Path::new("golden")).unwrap();
+    let scenes = terraclip::check::golden::scenes(Path::new("golden")).unwrap();
     assert!(scenes.len() >= 10);
     for p in scenes {
         let name = p.file_stem().unwrap().to_string_lossy().into_owned();
@@ -340,8 +341,8 @@ fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
 /// the sub-pixel precision) passes.
 #[test]
 fn tolerance_mode_fails_real_defects_at_the_golden_size() {
+    use terraclip::frame::stats::Passes;
     use terraclip::render::{draw, RenderOptions, Session};
-    use terraclip::stats::Passes;
     let scene = Scene::load(Path::new("golden/default.toml")).unwrap();
     assert_eq!((scene.image.width, scene.image.height), (960, 540));
     let mut session = Session::new(&scene, &mut Passes::default()).unwrap();

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use terraclip::heightmap::Heightmap;
+use terraclip::terrain::Heightmap;
 
 const JACKSBORO: &str = "tests/data/jacksboro_16.png";
 

@@ -3,10 +3,10 @@
 //! frame of a large map needs only the tiles under its windows, and what a
 //! lazy pyramid cannot serve is refused with the field named.
 
-use terraclip::heightmap::procedural::Procedural;
+use terraclip::frame::stats::Passes;
 use terraclip::render::{Image, RenderOptions, RenderStats, Session};
 use terraclip::scene::Scene;
-use terraclip::stats::Passes;
+use terraclip::terrain::procedural::Procedural;
 
 /// The default scene on a procedural `size`² map with a fixed colour ramp,
 /// lazy or not.

@@ -6,13 +6,13 @@
 use proptest::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
-use terraclip::camera::Camera;
 use terraclip::lod::geomipmap::{Config, GeoMipMap, Mode};
 use terraclip::lod::roam::{self, Roam};
 use terraclip::lod::{Lod, View};
 use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::scene::camera::Camera;
 use terraclip::scene::Scene;
-use terraclip::world::WorldMap;
+use terraclip::terrain::world::WorldMap;
 
 mod common;
 
@@ -152,7 +152,7 @@ fn every_scheme_renders_the_default_view_near_brute_force() {
         ("annulus", 22.29),
     ] {
         let (img, st) = terraclip::render::render(&s.with_lod(lod).unwrap(), &opts).unwrap();
-        let e = terraclip::metrics::image_error(&img, &bf, &cam);
+        let e = terraclip::studies::metrics::image_error(&img, &bf, &cam);
         println!("{lod}: {} triangles, rmse {:.2}", st.triangles, e.rmse);
         assert!(st.triangles > 0, "{lod} drew nothing");
         assert_eq!(st.non_finite_vertices, 0);
@@ -163,12 +163,12 @@ fn every_scheme_renders_the_default_view_near_brute_force() {
 
 #[test]
 fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
-    let opts = terraclip::tradeoff::Options {
+    let opts = terraclip::studies::tradeoff::Options {
         size: [64, 36],
         path_frames: 4,
         quick: true,
     };
-    let r = terraclip::tradeoff::run(&scene(), &opts, |_| {}).unwrap();
+    let r = terraclip::studies::tradeoff::run(&scene(), &opts, |_| {}).unwrap();
     for lod in [
         "brute-force",
         "clipmap",
@@ -217,7 +217,7 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     );
     // The CSV and the chart hold every row.
     let dir = std::env::temp_dir().join(format!("terraclip-tradeoff-{}", std::process::id()));
-    terraclip::tradeoff::write(&r, &dir, "test").unwrap();
+    terraclip::studies::tradeoff::write(&r, &dir, "test").unwrap();
     let csv = std::fs::read_to_string(dir.join("tradeoff.csv")).unwrap();
     assert_eq!(csv.lines().count(), r.rows.len() + 1);
     let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).unwrap();
@@ -236,12 +236,12 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
 #[test]
 fn fly_reports_updates_and_sees_pops_without_morph() {
     let mut s = scene();
-    let on = terraclip::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
+    let on = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
     s.effects.retain(|e| e != "morph");
-    let off = terraclip::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
+    let off = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
     assert_eq!(on.frames.len(), 24);
     assert!(on.texels_updated > 0, "the clipmap never updated");
-    let mean = |r: &terraclip::fly::FlyReport| {
+    let mean = |r: &terraclip::studies::fly::FlyReport| {
         r.frames.iter().map(|f| f.popping).sum::<f64>() / r.frames.len() as f64
     };
     println!(
@@ -257,9 +257,10 @@ fn fly_reports_updates_and_sees_pops_without_morph() {
         on.popping_max < 0.8 * off.popping_max,
         "max popping, on against off"
     );
-    let bf = terraclip::fly::fly(&s.with_lod("brute-force").unwrap(), 3, 7.0, true, |_, _| {
-        Ok(())
-    })
-    .unwrap();
+    let bf =
+        terraclip::studies::fly::fly(&s.with_lod("brute-force").unwrap(), 3, 7.0, true, |_, _| {
+            Ok(())
+        })
+        .unwrap();
     assert_eq!(bf.popping_max, 0.0, "brute force cannot pop against itself");
 }

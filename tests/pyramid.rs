@@ -1,7 +1,7 @@
 //! Pyramid filters, measured on a narrow peak and a pit.
 
-use terraclip::heightmap::Heightmap;
 use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::terrain::Heightmap;
 
 fn bump(amplitude: f64, sigma: f64) -> Heightmap {
     let n = 129;
@@ -75,8 +75,8 @@ fn build_is_identical_for_any_thread_count() {
 
 mod lazy {
     use proptest::prelude::*;
-    use terraclip::heightmap::procedural::Procedural;
     use terraclip::pyramid::{Filter, LazyBase, Pyramid, TILE};
+    use terraclip::terrain::procedural::Procedural;
 
     fn bits(v: &[f32]) -> Vec<u32> {
         v.iter().map(|x| x.to_bits()).collect()

@@ -101,7 +101,7 @@ fn too_many_levels_is_an_error() {
     let (w, h) = (403, 344);
     let max = max_levels(w, h, n);
     let map =
-        terraclip::heightmap::Heightmap::from_values(w, h, vec![0.0; w * h], None, [1.0, 1.0], "t")
+        terraclip::terrain::Heightmap::from_values(w, h, vec![0.0; w * h], None, [1.0, 1.0], "t")
             .unwrap();
     let p = std::sync::Arc::new(terraclip::pyramid::Pyramid::build(
         &map,

@@ -1,11 +1,11 @@
 //! Frame work does not depend on terrain size for clipmaps, and does for
 //! brute force; the scaling report's exact figures.
 
-use terraclip::heightmap::procedural::Procedural;
+use terraclip::frame::stats::Passes;
 use terraclip::render::{RenderOptions, Session};
-use terraclip::scaling::{self, Options};
 use terraclip::scene::Scene;
-use terraclip::stats::Passes;
+use terraclip::studies::scaling::{self, Options};
+use terraclip::terrain::procedural::Procedural;
 
 /// The default scene over a procedural `size`² map, eye over its centre.
 fn scene(size: usize, lod: &str) -> Scene {

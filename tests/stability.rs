@@ -8,16 +8,16 @@ mod common;
 use glam::{DVec3, DVec4};
 use proptest::prelude::*;
 use std::path::Path;
-use terraclip::camera::Camera;
 use terraclip::clipmap::toroid::Toroid;
 use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout};
-use terraclip::heightmap::Heightmap;
+use terraclip::frame::stats::Passes;
+use terraclip::frame::surface::Surface;
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::raster::{self, Mesh, Options, Path as RasterPath};
 use terraclip::render::{draw, RenderOptions, RenderStats, Session};
+use terraclip::scene::camera::Camera;
 use terraclip::scene::Scene;
-use terraclip::stats::Passes;
-use terraclip::surface::Surface;
+use terraclip::terrain::Heightmap;
 
 fn scene(text: &str) -> Scene {
     Scene::parse(text, "stability", Path::new(".")).unwrap()
@@ -510,7 +510,7 @@ fn many_levels_on_tiny_and_thin_maps() {
         Heightmap::from_values(w, h, values, None, [1.0, 1.0], "test").unwrap()
     };
     let procedural = |w: usize, h: usize| {
-        let mut p = terraclip::heightmap::procedural::Procedural::new(3, w, h);
+        let mut p = terraclip::terrain::procedural::Procedural::new(3, w, h);
         p.wavelength = 512.0;
         p.octaves = 4;
         p.generate().unwrap()
@@ -608,7 +608,7 @@ fn unproject_at(
     [wx, wy]: [f64; 2],
     z: f32,
 ) -> (DVec3, DVec3) {
-    let u = terraclip::vertex::VertexUniforms::new(cam, &session.world);
+    let u = terraclip::frame::vertex::VertexUniforms::new(cam, &session.world);
     let o = session
         .world
         .to_world(u.origin[0] as f64, u.origin[1] as f64, 0.0);
@@ -730,7 +730,8 @@ struct Queries {
 fn query_counts(lod: &str, view: usize) -> Queries {
     let s = scene(common::SMALL_SCENE).with_lod(lod).unwrap();
     let mut session = Session::new(&s, &mut Passes::default()).unwrap();
-    let cam = terraclip::views::random_views(&session, &s.camera(), view + 1, 0xD1A6)[view];
+    let cam =
+        terraclip::studies::views::random_views(&session, &s.camera(), view + 1, 0xD1A6)[view];
     let (frame, _) = session.frame(&cam, &mut Passes::default()).unwrap();
     let (img, st) = draw(&frame, &RenderOptions::default(), &mut Passes::default());
     assert_eq!(

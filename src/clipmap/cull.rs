@@ -7,8 +7,8 @@
 //! the convex polytope, then widened to whole cells and by one cell for
 //! rounding, so no visible cell is ever dropped.
 
-use crate::camera::Frustum;
-use crate::world::WorldMap;
+use crate::scene::camera::Frustum;
+use crate::terrain::world::WorldMap;
 use glam::{DVec3, DVec4};
 
 /// Greene's classification of a box against a frustum.

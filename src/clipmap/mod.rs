@@ -10,10 +10,10 @@ pub mod morph;
 pub mod region;
 pub mod toroid;
 
-use crate::camera::Frustum;
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
-use crate::world::WorldMap;
+use crate::scene::camera::Frustum;
+use crate::terrain::world::WorldMap;
 use footprint::{Footprints, Instance};
 use level::ClipLevel;
 use rayon::prelude::*;

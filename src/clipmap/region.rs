@@ -147,7 +147,7 @@ fn floor_i64(x: f64) -> i64 {
     }
 }
 
-/// The next coarser level's origin, see [`first_origin`].
+/// The next coarser level's origin, see `first_origin`.
 pub fn coarser_origin(o: [i64; 2], m: i64) -> [i64; 2] {
     o.map(|c| {
         let f = c / 2;

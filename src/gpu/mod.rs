@@ -14,7 +14,6 @@
 //! stage's clip positions and varyings, in a storage buffer.
 
 pub mod device;
-pub mod parity;
 mod textures;
 
 pub use device::{Api, Gpu};
@@ -26,7 +25,7 @@ use crate::frame::Frame;
 use crate::raster::unorm8;
 use crate::render::Image;
 use crate::shade::{level_tint, Effects};
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 use std::collections::HashMap;
 use textures::{Atlas, ToroidTextures};
 use wgpu::util::DeviceExt;

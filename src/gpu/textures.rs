@@ -9,7 +9,7 @@ use crate::render::Image;
 use crate::shade::normal_map::NormalMap;
 use crate::shade::normals;
 use crate::shade::shadows::Lightmap;
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 
 fn texture(gpu: &Gpu, size: [u32; 3], format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {

@@ -4,9 +4,9 @@
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
-use crate::camera::Frustum;
 use crate::pyramid::{Pyramid, PyramidLevel};
-use crate::world::WorldMap;
+use crate::scene::camera::Frustum;
+use crate::terrain::world::WorldMap;
 use std::sync::Arc;
 
 const BLOCK: usize = 32;

@@ -8,10 +8,10 @@
 //! triangles beyond the edge only collapse onto it.
 
 use super::{LodMesh, LodVertex};
-use crate::camera::Frustum;
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::PyramidLevel;
-use crate::world::WorldMap;
+use crate::scene::camera::Frustum;
+use crate::terrain::world::WorldMap;
 
 /// The base-map vertex at (col, row), clamped onto the map.
 #[inline]

@@ -11,11 +11,11 @@ pub mod geomipmap;
 mod grid;
 pub mod roam;
 
-use crate::camera::{Camera, Frustum};
 use crate::clipmap::{Clipmap, ClipmapConfig};
 use crate::error::Result;
 use crate::pyramid::Pyramid;
-use crate::world::WorldMap;
+use crate::scene::camera::{Camera, Frustum};
+use crate::terrain::world::WorldMap;
 use serde::Serialize;
 use std::sync::Arc;
 

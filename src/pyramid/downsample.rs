@@ -190,8 +190,8 @@ const ROWS_PER_TASK: usize = 64;
 /// passes run 4 f64 lanes wide.
 pub(super) fn downsample(src: &PyramidLevel, kernel: &[f64]) -> PyramidLevel {
     let (w2, h2) = halved(src.width, src.height);
-    let mut data = crate::huge::filled(w2 * h2, 0f32);
-    let mut nodata = crate::huge::filled(w2 * h2, false);
+    let mut data = crate::terrain::huge::filled(w2 * h2, 0f32);
+    let mut nodata = crate::terrain::huge::filled(w2 * h2, false);
     let band = w2 * ROWS_PER_TASK;
     data.par_chunks_mut(band)
         .zip(nodata.par_chunks_mut(band))

@@ -18,8 +18,8 @@
 
 use super::downsample::{self, Block, Scratch};
 use super::{Filter, Pyramid, PyramidLevel, RangeGrid, RANGE_TILE};
-use crate::heightmap::procedural::Procedural;
-use crate::heightmap::Heightmap;
+use crate::terrain::procedural::Procedural;
+use crate::terrain::Heightmap;
 use rayon::prelude::*;
 use serde::Serialize;
 

@@ -16,7 +16,7 @@
 mod downsample;
 mod lazy;
 
-use crate::heightmap::Heightmap;
+use crate::terrain::Heightmap;
 use downsample::downsample;
 pub use lazy::{LazyBase, LazyStats, TILE};
 use rayon::prelude::*;

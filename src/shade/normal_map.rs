@@ -6,7 +6,7 @@
 use super::normals::{from_gradient, gradient};
 use super::vec3::normalize;
 use crate::pyramid::PyramidLevel;
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 use rayon::prelude::*;
 
 /// Normals on the half-texel grid of one level.

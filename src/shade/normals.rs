@@ -5,7 +5,7 @@
 
 use super::vec3::normalize;
 use crate::pyramid::PyramidLevel;
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 
 /// World-space slope (dZ/dX, dZ/dY) at texel (x, y) of `p`, whose texels are
 /// `spacing` base cells apart. Y points north, i.e. toward smaller rows.

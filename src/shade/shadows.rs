@@ -8,9 +8,9 @@
 //! Built only when a scene lists `shadows`.
 
 use crate::error::{Error, Result};
-use crate::heightmap::Heightmap;
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
+use crate::terrain::Heightmap;
 use rayon::prelude::*;
 
 /// The lightmap pyramid and its resolution relative to the heightmap.

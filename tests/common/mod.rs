@@ -5,9 +5,9 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use terraclip::clipmap::region::Rect;
 use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout, MeshVertex};
-use terraclip::heightmap::procedural::Procedural;
-use terraclip::heightmap::Heightmap;
 use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::terrain::procedural::Procedural;
+use terraclip::terrain::Heightmap;
 
 /// A procedural map of the given size (cell size 1).
 pub fn terrain(seed: u64, w: usize, h: usize) -> Heightmap {

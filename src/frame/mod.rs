@@ -3,17 +3,21 @@
 //! uniforms, the per-vertex varyings the listed effects need, and the
 //! effects' precomputed inputs. Both back ends consume the same `Frame`.
 
-use crate::camera::Camera;
+pub mod stats;
+pub mod surface;
+pub mod vertex;
+
 use crate::error::Result;
 use crate::lod::LodMesh;
 use crate::pyramid::{Filter, Pyramid};
+use crate::scene::camera::Camera;
 use crate::shade::normal_map::{NormalMap, Sources};
 use crate::shade::shadows::Lightmap;
 use crate::shade::{self, fog, normals, wireframe, Effects, Layout, Resources, ShadeParams};
-use crate::stats::Passes;
-use crate::vertex::VertexUniforms;
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 use rayon::prelude::*;
+use stats::Passes;
+use vertex::VertexUniforms;
 
 #[derive(Clone, Debug)]
 pub struct Frame {

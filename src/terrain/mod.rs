@@ -1,5 +1,7 @@
-//! Heightmaps: an f32 grid with a cell size and a no-data mask, and the
-//! readers that produce one from files or from a seeded generator.
+//! The terrain stage: heightmaps (an f32 grid with a cell size and a
+//! no-data mask), the readers that produce one from files or from a seeded
+//! generator, their placement in the world (`world`), and the large-array
+//! allocation the terrain and its pyramid share (`huge`).
 //!
 //! Grid convention: `(col, row)`, row 0 is north, col 0 is west. Heights are
 //! metres. No-data texels (declared no-data, NaN or ±inf) are counted, kept in
@@ -7,11 +9,13 @@
 //! assume finite values.
 
 mod asc;
+pub mod huge;
 mod image_file;
 pub mod procedural;
 mod raw;
 mod sidecar;
 mod tiff_file;
+pub mod world;
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -85,7 +89,7 @@ impl Heightmap {
             ));
         }
         let is_nodata = |v: f32| !v.is_finite() || nodata_value == Some(v);
-        let nodata = crate::huge::collect(values.iter().map(|&v| is_nodata(v)));
+        let nodata = crate::terrain::huge::collect(values.iter().map(|&v| is_nodata(v)));
         let nodata_count = nodata.iter().filter(|&&b| b).count();
         let fill = values
             .iter()

@@ -6,10 +6,10 @@
 //! written in the order a WGSL vertex shader will repeat (RASTER_RULES.md
 //! rule 7): no FMA, matrix columns summed from the last one.
 
-use crate::camera::Camera;
 use crate::clipmap::morph;
 use crate::lod::LodVertex;
-use crate::world::WorldMap;
+use crate::scene::camera::Camera;
+use crate::terrain::world::WorldMap;
 use glam::DVec3;
 
 /// The stage's constants (a GPU uniform block).

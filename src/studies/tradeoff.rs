@@ -7,13 +7,13 @@
 //! supersampling, is measured the same way against a 64× render of the
 //! same mesh.
 
-use crate::camera::Camera;
 use crate::error::Result;
-use crate::metrics::{self, ImageError};
+use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
+use crate::scene::camera::Camera;
 use crate::scene::Scene;
-use crate::stats::Passes;
-use crate::views::{self, NamedView};
+use crate::studies::metrics::{self, ImageError};
+use crate::studies::views::{self, NamedView};
 use serde::Serialize;
 
 /// One scheme at one setting.
@@ -444,8 +444,8 @@ pub fn csv(rows: &[Row]) -> String {
 }
 
 /// Error against time, one series per scheme, the Pareto front marked.
-pub fn chart(report: &Report, title: &str) -> crate::report::chart::Chart {
-    use crate::report::chart::{Chart, Series};
+pub fn chart(report: &Report, title: &str) -> crate::studies::report::chart::Chart {
+    use crate::studies::report::chart::{Chart, Series};
     let mut series: Vec<Series> = Vec::new();
     for r in &report.rows {
         match series.iter_mut().find(|s| s.name == r.lod) {

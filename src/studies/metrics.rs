@@ -3,8 +3,8 @@
 //! metres, crack pixels, popping along a path, and box downsampling for
 //! supersampled renders.
 
-use crate::camera::Camera;
 use crate::render::Image;
+use crate::scene::camera::Camera;
 use serde::Serialize;
 
 /// Error of an image against a reference of the same view.

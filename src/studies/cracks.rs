@@ -21,14 +21,14 @@
 //! `far_depth_pixels` the others. Brute-force renders are shared by all
 //! schemes of one run.
 
-use crate::camera::Camera;
 use crate::error::Result;
-use crate::metrics;
+use crate::frame::stats::Passes;
+use crate::frame::surface::Surface;
 use crate::render::{self, Image, RenderOptions, Session};
+use crate::scene::camera::Camera;
 use crate::scene::Scene;
-use crate::stats::Passes;
-use crate::surface::Surface;
-use crate::views;
+use crate::studies::metrics;
+use crate::studies::views;
 use glam::DVec3;
 use serde::Serialize;
 
@@ -184,7 +184,7 @@ pub enum Candidate {
 }
 
 /// 16 ULP of depth just below 1.0 (2^-20): the f32 error of the depth
-/// stage (`gpu::parity::TOLERANCE_DEPTH_ULP` derives it).
+/// stage (`check::parity::TOLERANCE_DEPTH_ULP` derives it).
 pub const FAR_DEPTH_BAND: f64 = 1.0 / 1_048_576.0;
 
 /// Where the terrain is: the map's world rectangle, the top of its
@@ -253,7 +253,7 @@ pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain)
         .filter(|h| h.t >= t_near && h.t <= t_far);
     if let Some(h) = hit {
         // The depth the hit has in exact arithmetic. Within the f32 error
-        // of the depth stage (16 ULP below 1.0, the bound `gpu::parity`
+        // of the depth stage (16 ULP below 1.0, the bound `check::parity`
         // derives) of the clear value, the surface is too close to the far
         // plane for a depth buffer to keep; anywhere nearer it is a hole.
         let z_view = h.t * cos;

@@ -96,10 +96,10 @@ impl Procedural {
     }
 
     /// Generates the heightmap (cell size 1 m; the scene scales it), in
-    /// parallel bands of [`BAND`] rows.
+    /// parallel bands of `BAND` rows.
     pub fn generate(&self) -> Result<Heightmap, String> {
         self.validate()?;
-        let mut values = crate::huge::filled(self.width * self.height, 0f32);
+        let mut values = crate::terrain::huge::filled(self.width * self.height, 0f32);
         values
             .par_chunks_mut(self.width * BAND)
             .enumerate()

@@ -3,10 +3,10 @@
 //! regions outlined thin, active regions outlined thick, the usable map
 //! bounds in grey and the viewer as a black dot with its view direction.
 
-use crate::camera::Camera;
 use crate::clipmap::{region, Clipmap};
 use crate::error::{Error, Result};
-use crate::world::WorldMap;
+use crate::scene::camera::Camera;
+use crate::terrain::world::WorldMap;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect as SkRect, Stroke, Transform};
 
 /// Colour for level l (cycled), also used by the `level-tint` effect.

@@ -2,8 +2,8 @@
 //! terrain (cracks), the wide and low-FOV view sets ATLOD measured error on
 //! (tradeoff), and straight camera paths (fly, popping).
 
-use crate::camera::Camera;
 use crate::render::Session;
+use crate::scene::camera::Camera;
 use glam::DVec3;
 
 /// xorshift64*, so view sets are the same on every machine.

@@ -14,11 +14,11 @@
 
 use crate::clipmap::{Clipmap, ClipmapConfig};
 use crate::error::{Error, Result};
-use crate::heightmap::procedural::Procedural;
+use crate::frame::stats::{median, Passes};
 use crate::pyramid::Pyramid;
 use crate::render::{self, RenderOptions, Session};
 use crate::scene::Scene;
-use crate::stats::{median, Passes};
+use crate::terrain::procedural::Procedural;
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
@@ -207,7 +207,7 @@ fn scene(base: &Scene, size: usize, lod: &str, opts: &Options) -> Scene {
     s
 }
 
-fn time_frame(session: &mut Session, cam: &crate::camera::Camera) -> Result<(f64, usize)> {
+fn time_frame(session: &mut Session, cam: &crate::scene::camera::Camera) -> Result<(f64, usize)> {
     let t = Instant::now();
     let mut passes = Passes::default();
     let (frame, _) = session.frame(cam, &mut passes)?;
@@ -407,7 +407,7 @@ fn centred_camera(
     session: &Session,
     size: usize,
     opts: &Options,
-) -> crate::camera::Camera {
+) -> crate::scene::camera::Camera {
     let mut cam = base.camera();
     cam.aspect = opts.image[0] as f64 / opts.image[1] as f64;
     let mid = size as f64 / 2.0;
@@ -425,9 +425,10 @@ fn centred_camera(
 /// same whatever its value.
 pub fn update_map(n: i64, levels: usize) -> Result<Pyramid> {
     let (w, h) = update_dims(n, levels)?;
-    let values =
-        crate::huge::collect((0..w * h).map(|i| ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0));
-    let map = crate::heightmap::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
+    let values = crate::terrain::huge::collect(
+        (0..w * h).map(|i| ((i % w) * 7 + (i / w) * 13) as f32 % 1000.0),
+    );
+    let map = crate::terrain::Heightmap::from_values(w, h, values, None, [1.0, 1.0], "update")
         .map_err(|r| Error::value("scaling.update", r))?;
     Ok(Pyramid::from_heightmap(
         map,
@@ -449,7 +450,7 @@ fn update_dims(n: i64, levels: usize) -> Result<(usize, usize)> {
     let w = need.next_power_of_two().max(64);
     // At least 2^L + 1 rows, so the coarsest level still has two cells.
     let h = (w / 4).max((1 << levels) + 1);
-    crate::heightmap::check_dimensions(w as u64, h as u64).map_err(|r| {
+    crate::terrain::check_dimensions(w as u64, h as u64).map_err(|r| {
         Error::value(
             "scaling.update",
             format!("n = {n} with L = {levels} needs a {w}×{h} map: {r}"),

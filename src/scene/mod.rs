@@ -2,22 +2,24 @@
 //! it, where the camera is, the image size and the effects. Unknown keys and
 //! bad values are errors that name the file, line and column.
 
-use crate::camera::Camera;
+pub mod camera;
+
 use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
 use crate::error::{Error, Result};
-use crate::heightmap::procedural::Procedural;
-use crate::heightmap::Heightmap;
 use crate::lod::{annulus, cdlod, geomipmap, roam, LodConfig};
 use crate::pyramid::{Filter, LazyBase, Pyramid};
 use crate::shade::{Effects, ShadeParams};
-use crate::world::WorldMap;
+use crate::terrain::procedural::Procedural;
+use crate::terrain::world::WorldMap;
+use crate::terrain::Heightmap;
+use camera::Camera;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The embedded default scene (procedural, no files needed).
-pub const DEFAULT_SCENE: &str = include_str!("default_scene.toml");
+pub const DEFAULT_SCENE: &str = include_str!("default.toml");
 
 /// Largest world coordinate accepted (metres).
 pub const MAX_COORDINATE: f64 = 1e12;

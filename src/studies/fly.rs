@@ -3,11 +3,11 @@
 //! brute-force render of the same path.
 
 use crate::error::{Error, Result};
-use crate::metrics;
+use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, Session};
 use crate::scene::Scene;
-use crate::stats::Passes;
-use crate::views;
+use crate::studies::metrics;
+use crate::studies::views;
 use serde::Serialize;
 
 #[derive(Clone, Debug, Serialize)]

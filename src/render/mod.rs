@@ -2,18 +2,18 @@
 //! shade, every step a timed pass, and only the passes the scene's effects
 //! need.
 
-use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::frame::stats::{Pass, Passes};
 use crate::frame::{Frame, FrameInput};
 use crate::lod::{Lod, LodUpdate, View};
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
+use crate::scene::camera::Camera;
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
-use crate::stats::{Pass, Passes};
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
@@ -89,7 +89,7 @@ pub struct LazyFrame {
 impl RenderStats {
     /// Total time of the passes named `names` (ms).
     pub fn pass_ms(&self, names: &[&str]) -> f64 {
-        crate::stats::pass_ms(&self.passes, names)
+        crate::frame::stats::pass_ms(&self.passes, names)
     }
 }
 
@@ -345,9 +345,9 @@ impl Session {
 
     /// The surface `camera`'s frame draws, for `height_at` and `ray_hit`
     /// (it updates the LOD for that camera, as a render would).
-    pub fn surface(&mut self, camera: &Camera) -> Result<crate::surface::Surface> {
+    pub fn surface(&mut self, camera: &Camera) -> Result<crate::frame::surface::Surface> {
         let (frame, _) = self.frame(camera, &mut Passes::default())?;
-        Ok(crate::surface::Surface::new(&frame, &self.world))
+        Ok(crate::frame::surface::Surface::new(&frame, &self.world))
     }
 
     /// Height of the base map at world point (x, y), nearest sample, in

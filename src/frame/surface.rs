@@ -10,7 +10,7 @@
 //! nearest hit lies inside it.
 
 use crate::frame::Frame;
-use crate::world::WorldMap;
+use crate::terrain::world::WorldMap;
 use glam::DVec3;
 
 /// A ray's first hit on the surface.

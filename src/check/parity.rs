@@ -1,12 +1,12 @@
 //! `check-gpu` and `bench`: the wgpu back end against the CPU reference on
 //! the same frames, in one process.
 
-use super::{ClipDraw, GpuRenderer};
-use crate::camera::Camera;
 use crate::error::{write_atomic, Result};
+use crate::frame::stats::{median, Passes};
+use crate::gpu::{ClipDraw, GpuRenderer};
 use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
+use crate::scene::camera::Camera;
 use crate::scene::Scene;
-use crate::stats::{median, Passes};
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
@@ -266,7 +266,7 @@ impl Difference {
         // telling it from a surface of the same colour, and no hole count.
         let enclosed = |img: &Image| {
             let bg: Vec<bool> = img.depth.iter().map(|&z| z == 1.0).collect();
-            crate::metrics::enclosed(&bg, w, h)
+            crate::studies::metrics::enclosed(&bg, w, h)
         };
         let holes = depth.then(|| (enclosed(a), enclosed(b)));
         for py in 0..h {
@@ -414,7 +414,7 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     Ok((image, stats))
 }
 
-pub use crate::views::path_camera;
+pub use crate::studies::views::path_camera;
 
 /// Renders `frames` views of the path on both back ends and compares each;
 /// the GPU's toroids are updated only by each frame's dirty rectangles.
@@ -459,7 +459,7 @@ pub fn check(
         // GL reads back no depth: compare colour alone there; anywhere else
         // a readback without depth is a failure (`size_mismatch`).
         let band = tie_band(&render::raster(&frame, opts.path), frame.effects.wireframe);
-        let d = if r.gpu.api == super::Api::Gl {
+        let d = if r.gpu.api == crate::gpu::Api::Gl {
             let colour = Image {
                 depth: vec![],
                 ..want.clone()
@@ -495,7 +495,7 @@ pub fn check(
         std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
         write_atomic(&out.join(format!("{name}-cpu.png")), &want.png()?)?;
         write_atomic(&out.join(format!("{name}-gpu.png")), &got.png()?)?;
-        let diff = crate::golden::diff(got, &want.rgba).1;
+        let diff = crate::check::golden::diff(got, &want.rgba).1;
         write_atomic(&out.join(format!("{name}-diff.png")), &diff.png()?)?;
     }
     Ok(SceneParity {

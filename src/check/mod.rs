@@ -1,0 +1,6 @@
+//! Checks of rendered images against references: the golden scenes, and the
+//! GPU back end against the CPU rasteriser.
+
+pub mod golden;
+#[cfg(feature = "gpu")]
+pub mod parity;

@@ -1,0 +1,13 @@
+//! Studies that run the pipeline to measure it: accuracy against time
+//! (`tradeoff`), growth with terrain size (`scaling`), crack surveys
+//! (`cracks`), flights (`fly`), the view sets they share (`views`), their
+//! image metrics (`metrics`), the clipmap diagram and the charts (`report`).
+
+pub mod cracks;
+pub mod diagram;
+pub mod fly;
+pub mod metrics;
+pub mod report;
+pub mod scaling;
+pub mod tradeoff;
+pub mod views;
