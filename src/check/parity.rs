@@ -409,7 +409,12 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     // A new session's textures must be written in full.
     r.forget_textures();
     let (frame, image, lazy) = gpu_frame(r, &mut session, &scene.camera(), &mut passes)?;
-    let mut stats = render::stats(&frame, "gpu", Default::default(), passes);
+    let mut stats = render::stats(
+        &frame,
+        render::Backend::Gpu.name(),
+        Default::default(),
+        passes,
+    );
     stats.lazy = lazy;
     Ok((image, stats))
 }

@@ -5,20 +5,12 @@
 use crate::error::{Error, Result};
 
 /// Which wgpu backend to open.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Api {
+    /// Vulkan: lavapipe, or the GPU's driver.
     Vulkan,
+    /// OpenGL through EGL, headless (no depth readback; unsupported).
     Gl,
-}
-
-impl Api {
-    pub fn parse(s: &str) -> Option<Api> {
-        match s {
-            "vulkan" => Some(Api::Vulkan),
-            "gl" => Some(Api::Gl),
-            _ => None,
-        }
-    }
 }
 
 /// An open device.

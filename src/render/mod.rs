@@ -18,6 +18,25 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
+/// Which back end draws a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Backend {
+    /// The CPU reference rasteriser.
+    Cpu,
+    /// The wgpu back end.
+    Gpu,
+}
+
+impl Backend {
+    /// The name the command line and the statistics use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Cpu => "cpu",
+            Backend::Gpu => "gpu",
+        }
+    }
+}
+
 /// A rendered image with its depth buffer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -327,7 +346,7 @@ impl Session {
     ) -> Result<(Image, RenderStats)> {
         let (frame, clip) = self.frame(camera, &mut passes)?;
         let (image, raster) = draw(&frame, opts, &mut passes);
-        let mut s = stats(&frame, "cpu", raster, passes);
+        let mut s = stats(&frame, Backend::Cpu.name(), raster, passes);
         s.lazy = self.lazy_frame(clip.as_ref());
         s.raster_path = Some(opts.path.label());
         Ok((image, s))

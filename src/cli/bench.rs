@@ -1,0 +1,46 @@
+//! `terraclip bench`: CPU and GPU frames per second, side by side.
+
+use super::load_scene;
+use std::path::PathBuf;
+use terraclip::scene::Overrides;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file; the embedded default scene if omitted.
+    pub scene: Option<PathBuf>,
+    /// Frames per timed repeat.
+    #[arg(long, default_value_t = 10)]
+    pub frames: usize,
+    /// Repeats; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Image size WIDTHxHEIGHT.
+    #[arg(long, default_value = "1920x1080", value_parser = Overrides::parse_size)]
+    pub size: [u32; 2],
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    use terraclip::check::parity;
+    use terraclip::gpu::{Api, Gpu, GpuRenderer};
+    if a.frames == 0 || a.repeats == 0 {
+        anyhow::bail!("--frames and --repeats must be at least 1");
+    }
+    let mut s = load_scene(&a.scene)?;
+    s.apply(&Overrides {
+        size: Some(a.size),
+        ..Default::default()
+    })?;
+    let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
+    let b = parity::bench(&mut r, &s, a.frames, a.repeats)?;
+    if a.json {
+        println!("{}", serde_json::to_value(&b)?);
+    } else {
+        println!(
+            "{}×{}, {} triangles, median of {} × {} frames: CPU {:.2} fps, GPU ({}) {:.2} fps, ratio {:.2}",
+            b.size[0], b.size[1], b.triangles, b.repeats, b.frames, b.cpu_fps, b.adapter, b.gpu_fps, b.ratio
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,89 @@
+//! `terraclip tradeoff`: error against brute force and time, per scheme and
+//! setting.
+
+use super::{progress, SceneArgs};
+use std::path::PathBuf;
+use terraclip::studies::tradeoff;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Scene file; the embedded default scene if omitted.
+    pub scene: Option<PathBuf>,
+    #[arg(long, default_value = "target/tradeoff")]
+    pub out: PathBuf,
+    /// Scene overrides (--size defaults to 320x180 here).
+    #[command(flatten)]
+    pub args: SceneArgs,
+    /// Frames along the popping path.
+    #[arg(long, default_value_t = 8)]
+    pub path_frames: usize,
+    /// Fewer settings per scheme.
+    #[arg(long)]
+    pub quick: bool,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    if a.path_frames < 2 {
+        anyhow::bail!("--path-frames must be at least 2");
+    }
+    let size = a.args.size.unwrap_or([320, 180]);
+    if size[0] == 0 || size[1] == 0 || size[0] > 2048 || size[1] > 2048 {
+        anyhow::bail!(
+            "--size must be within 1..=2048 per side (64× supersampling multiplies it by 8)"
+        );
+    }
+    let s = a.args.scene(&a.scene)?;
+    let opts = tradeoff::Options {
+        size,
+        path_frames: a.path_frames,
+        quick: a.quick,
+    };
+    let count = tradeoff::settings(&s, a.quick)?.len();
+    let bar = progress(count, "tradeoff");
+    let report = tradeoff::run(&s, &opts, |label| {
+        bar.set_message(label.to_string());
+        bar.inc(1);
+    })?;
+    bar.finish_and_clear();
+    let title = match &a.args.heightmap {
+        Some(h) => format!("{} at {}x{}", h.display(), size[0], size[1]),
+        None => format!("{} at {}x{}", s.origin, size[0], size[1]),
+    };
+    tradeoff::write(&report, &a.out, &title)?;
+    if a.json {
+        println!("{}", serde_json::to_value(&report)?);
+        return Ok(());
+    }
+    println!(
+        "{:<12} {:<26} {:>9} {:>8} {:>4} {:>9} {:>10} {:>8}",
+        "lod", "config", "ms", "rmse", "max", "depth m", "triangles", "popping"
+    );
+    for r in &report.rows {
+        println!(
+            "{:<12} {:<26} {:>9.2} {:>8.3} {:>4} {:>9.2} {:>10.0} {:>8.3}{}",
+            r.lod,
+            r.config,
+            r.ms,
+            r.rmse,
+            r.max_abs,
+            r.depth_m,
+            r.triangles,
+            r.popping,
+            if r.pareto { "  *" } else { "" }
+        );
+    }
+    match &report.best_in_budget {
+        Some(b) => println!(
+            "within 1/10 of brute force ({:.2} ms): {} {} has the lowest RMSE, {:.3}",
+            report.budget_ms, b.lod, b.config, b.rmse
+        ),
+        None => println!(
+            "no setting ran within 1/10 of brute force ({:.2} ms)",
+            report.budget_ms
+        ),
+    }
+    println!("wrote {}/tradeoff.{{csv,svg,png}}", a.out.display());
+    Ok(())
+}
