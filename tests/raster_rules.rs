@@ -86,10 +86,16 @@ fn snap_ties_round_to_even() {
 #[test]
 fn depth_is_the_fma_plane_tested_less() {
     // Two coplanar copies: the first drawn keeps every pixel (LESS, not
-    // LEQUAL), and the stored depth is the plane value at the centre.
+    // LEQUAL) on every path, and the stored depth is the plane value at the
+    // centre.
     let t = [(1.0, 1.0, 0.25), (9.0, 1.0, 0.75), (1.0, 9.0, 0.5)];
+    for path in [Path::Scalar, Path::Simd, Path::Portable] {
+        let r = draw(&[t, t], 16, 16, path);
+        let first = r.prim.iter().filter(|&&p| p == 0).count();
+        assert_eq!(first, 28, "{path:?}");
+        assert!(r.prim.iter().all(|&p| p == NONE || p == 0), "{path:?}");
+    }
     let r = draw(&[t, t], 16, 16, Path::Scalar);
-    assert!(r.prim.iter().all(|&p| p == NONE || p == 0));
     let i = 2 * 16 + 3;
     let plane = r.tris[0].z;
     assert_eq!(
