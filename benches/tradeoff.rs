@@ -9,8 +9,8 @@ use terraclip::scene::Scene;
 
 fn bench(c: &mut Criterion) {
     let base = Scene::default_scene();
-    for &spec in terraclip::studies::cracks::ALL {
-        let scene = base.with_lod(spec).expect("valid scheme");
+    for spec in terraclip::studies::cracks::all() {
+        let scene = base.with_lod(&spec).expect("valid scheme");
         let mut s = Session::new(&scene, &mut Passes::default()).expect("session");
         let start = scene.camera();
         let mut i = 0usize;

@@ -7,12 +7,12 @@
 //! morph off show cracks.
 
 mod common;
-use terraclip::scene::Scene;
+use terraclip::scene::{Effect, Scene};
 use terraclip::studies::cracks::{survey, CrackReport};
 
 fn scene(morph: bool) -> Scene {
     let mut s = common::small_scene();
-    s.effects = if morph { vec!["morph".into()] } else { vec![] };
+    s.effects = if morph { vec![Effect::Morph] } else { vec![] };
     s
 }
 

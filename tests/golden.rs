@@ -7,7 +7,7 @@ use std::path::Path;
 use terraclip::check::golden::{check_one, scenes};
 use terraclip::raster::Path as RasterPath;
 use terraclip::render::{render, RenderOptions};
-use terraclip::scene::Scene;
+use terraclip::scene::{Effect, Scene};
 
 mod common;
 
@@ -60,7 +60,7 @@ fn golden_scene(name: &str) -> Scene {
 fn without_shadows_no_lightmap_is_built_and_the_frame_costs_less() {
     let with = golden_scene("shadows-low-sun");
     let mut without = with.clone();
-    without.effects.retain(|e| e != "shadows");
+    without.effects.retain(|e| *e != Effect::Shadows);
     let opts = RenderOptions::default();
     // Best of three each, to keep a busy machine from deciding the result.
     let best = |s: &Scene| {
@@ -108,7 +108,7 @@ fn without_lighting_no_normals_are_computed() {
     let (_, lit) = render(&s, &RenderOptions::default()).unwrap();
     assert!(lit.passes.iter().any(|p| p.name == "normals"));
     assert!(lit.normals_computed > 0);
-    s.effects = vec!["fog".into(), "morph".into()];
+    s.effects = vec![Effect::Fog, Effect::Morph];
     let (_, unlit) = render(&s, &RenderOptions::default()).unwrap();
     assert!(unlit
         .passes

@@ -285,8 +285,8 @@ fn brute_force_passthrough_matches_the_cpu() {
     let effects = ["lambert", "fog", "shadows", "wireframe"];
     scene
         .apply(&terraclip::scene::Overrides {
-            lod: Some("brute-force".into()),
-            effects: Some(effects.iter().map(|s| s.to_string()).collect()),
+            lod: Some(terraclip::scene::LodScheme::BruteForce),
+            effects: Some(effects.iter().map(|s| s.parse().unwrap()).collect()),
             ..Default::default()
         })
         .unwrap();

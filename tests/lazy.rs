@@ -5,7 +5,7 @@
 
 use terraclip::frame::stats::Passes;
 use terraclip::render::{Image, RenderOptions, RenderStats, Session};
-use terraclip::scene::Scene;
+use terraclip::scene::{Effect, LodScheme, Scene};
 use terraclip::terrain::procedural::Procedural;
 
 /// The default scene on a procedural `size`² map with a fixed colour ramp,
@@ -107,12 +107,12 @@ fn lazy_scenes_refuse_what_needs_the_whole_map() {
         edit(&mut s);
         s.validate().unwrap_err().to_string()
     };
-    let e = err(&|s| s.lod.scheme = "brute-force".into());
+    let e = err(&|s| s.lod.scheme = LodScheme::BruteForce);
     assert!(
         e.contains("pyramid.lazy") && e.contains("brute-force"),
         "{e}"
     );
-    let e = err(&|s| s.effects.push("shadows".into()));
+    let e = err(&|s| s.effects.push(Effect::Shadows));
     assert!(e.contains("pyramid.lazy") && e.contains("shadows"), "{e}");
     let e = err(&|s| s.shading.height_range = None);
     assert!(e.contains("shading.height_range"), "{e}");
@@ -123,7 +123,7 @@ fn lazy_scenes_refuse_what_needs_the_whole_map() {
     // Level tint colours by level, not height: no range needed.
     let mut s = scene(257, true, 1000);
     s.shading.height_range = None;
-    s.effects = vec!["level-tint".into()];
+    s.effects = vec![Effect::LevelTint];
     s.validate().unwrap();
 }
 

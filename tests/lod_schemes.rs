@@ -11,7 +11,7 @@ use terraclip::lod::roam::{self, Roam};
 use terraclip::lod::{Lod, View};
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::scene::camera::Camera;
-use terraclip::scene::Scene;
+use terraclip::scene::{Effect, Scene};
 use terraclip::terrain::world::WorldMap;
 
 mod common;
@@ -123,7 +123,7 @@ fn scheme_settings_are_validated() {
             "n = 15\nscheme = \"roam\"\nmax_triangles = 0",
             "> 0",
         ),
-        ("n = 15", "n = 15\nscheme = \"quadtree\"", "available"),
+        ("n = 15", "n = 15\nscheme = \"quadtree\"", "unknown scheme 'quadtree' (known: clipmap"),
     ] {
         let text = common::SMALL_SCENE.replace(from, to);
         let e = Scene::parse(&text, "s.toml", Path::new("."))
@@ -237,7 +237,7 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
 fn fly_reports_updates_and_sees_pops_without_morph() {
     let mut s = scene();
     let on = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
-    s.effects.retain(|e| e != "morph");
+    s.effects.retain(|e| *e != Effect::Morph);
     let off = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
     assert_eq!(on.frames.len(), 24);
     assert!(on.texels_updated > 0, "the clipmap never updated");

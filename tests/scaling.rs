@@ -11,7 +11,7 @@ use terraclip::terrain::procedural::Procedural;
 fn scene(size: usize, lod: &str) -> Scene {
     let mut s = Scene::default_scene();
     s.terrain.procedural = Some(Procedural::new(20041, size, size));
-    s.lod.scheme = lod.into();
+    s.lod.scheme = lod.parse().unwrap();
     s.lod.n = 63;
     s.lod.levels = Some(3);
     s.image.width = 160;

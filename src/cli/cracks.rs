@@ -34,9 +34,9 @@ pub struct Args {
 /// "all", a list, or the scene's own scheme.
 fn scheme_list(lod: &Option<String>, s: &Scene) -> Vec<String> {
     match lod.as_deref() {
-        Some("all") => cracks::ALL.iter().map(|s| s.to_string()).collect(),
+        Some("all") => cracks::all(),
         Some(list) => list.split(',').map(|p| p.trim().to_string()).collect(),
-        None => vec![s.lod.scheme.clone()],
+        None => vec![s.lod.scheme.to_string()],
     }
 }
 

@@ -17,7 +17,7 @@ pub mod scaling;
 pub mod tradeoff;
 
 use std::path::PathBuf;
-use terraclip::scene::{Overrides, Scene};
+use terraclip::scene::{Effect, LodScheme, Overrides, Scene};
 
 /// Scene values the command line can replace.
 #[derive(clap::Args, Debug, Default)]
@@ -38,11 +38,24 @@ pub struct SceneArgs {
     #[arg(long, value_parser = Overrides::parse_size)]
     pub size: Option<[u32; 2]>,
     /// LOD scheme (clipmap, brute-force, geomipmap, roam, annulus, cdlod).
-    #[arg(long)]
-    pub lod: Option<String>,
+    #[arg(long, value_enum, hide_possible_values = true)]
+    pub lod: Option<LodScheme>,
     /// Comma-separated effects (empty for none).
-    #[arg(long)]
-    pub effects: Option<String>,
+    #[arg(long, value_parser = parse_effects)]
+    pub effects: Option<EffectList>,
+}
+
+/// `--effects a,b,c`, empty for none.
+#[derive(Clone, Debug)]
+pub struct EffectList(pub Vec<Effect>);
+
+fn parse_effects(s: &str) -> Result<EffectList, String> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|e| !e.is_empty())
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .map(EffectList)
 }
 
 impl SceneArgs {
@@ -53,13 +66,8 @@ impl SceneArgs {
             look_at: self.look_at,
             fov: self.fov,
             size: self.size,
-            lod: self.lod.clone(),
-            effects: self.effects.as_ref().map(|e| {
-                e.split(',')
-                    .map(|s| s.trim().to_string())
-                    .filter(|s| !s.is_empty())
-                    .collect()
-            }),
+            lod: self.lod,
+            effects: self.effects.as_ref().map(|e| e.0.clone()),
         }
     }
 

@@ -18,19 +18,21 @@ use footprint::{Footprints, Instance};
 use level::ClipLevel;
 use rayon::prelude::*;
 use region::{Rect, RegionParams};
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 use std::sync::Arc;
 use toroid::TexRects;
 
-/// Index layout used to mesh each level.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum Layout {
-    /// Brettell / LH04: strips over the toroid, cropped to finite maps.
-    #[default]
-    Strips,
-    /// GPU Gems 2: static footprints; full rings, blocks off the map culled.
-    Footprints,
+crate::scene::names::named! {
+    /// Index layout used to mesh each level.
+    #[derive(Default)]
+    pub enum Layout ("layout") {
+        /// Brettell / LH04: strips over the toroid, cropped to finite maps.
+        #[default]
+        Strips => "strips",
+        /// GPU Gems 2: static footprints; full rings, blocks off the map
+        /// culled.
+        Footprints => "footprints",
+    }
 }
 
 /// Clipmap settings.

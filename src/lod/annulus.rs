@@ -11,6 +11,7 @@ use super::grid;
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::Pyramid;
+use crate::scene::LodScheme;
 use std::sync::Arc;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -97,8 +98,8 @@ impl Annulus {
 }
 
 impl Lod for Annulus {
-    fn name(&self) -> &'static str {
-        "annulus"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::Annulus
     }
     fn pyramid(&self) -> &Pyramid {
         &self.pyramid

@@ -6,6 +6,7 @@ use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::pyramid::{Pyramid, PyramidLevel};
 use crate::scene::camera::Frustum;
+use crate::scene::LodScheme;
 use crate::terrain::world::WorldMap;
 use std::sync::Arc;
 
@@ -24,8 +25,8 @@ impl BruteForce {
 }
 
 impl Lod for BruteForce {
-    fn name(&self) -> &'static str {
-        "brute-force"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::BruteForce
     }
     fn pyramid(&self) -> &Pyramid {
         &self.pyramid

@@ -17,6 +17,7 @@ use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::Pyramid;
+use crate::scene::LodScheme;
 use glam::DVec3;
 use std::sync::Arc;
 
@@ -193,8 +194,8 @@ impl Cdlod {
 }
 
 impl Lod for Cdlod {
-    fn name(&self) -> &'static str {
-        "cdlod"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::Cdlod
     }
     fn pyramid(&self) -> &Pyramid {
         &self.pyramid

@@ -6,6 +6,7 @@
 use super::{LevelInfo, Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
 use crate::pyramid::Pyramid;
+use crate::scene::LodScheme;
 
 /// The clipmap state a frame was made from, for a back end that draws from
 /// its own copy of the toroidal levels.
@@ -31,8 +32,8 @@ impl ClipmapLod {
 }
 
 impl Lod for ClipmapLod {
-    fn name(&self) -> &'static str {
-        "clipmap"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::Clipmap
     }
 
     fn update(&mut self, view: &View) -> LodUpdate {

@@ -20,6 +20,7 @@
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::pyramid::{Pyramid, PyramidLevel};
+use crate::scene::LodScheme;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -286,8 +287,8 @@ fn level_error(base: &PyramidLevel, c0: i64, r0: i64, s: i64, g: i64) -> f32 {
 }
 
 impl Lod for GeoMipMap {
-    fn name(&self) -> &'static str {
-        "geomipmap"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::Geomipmap
     }
     fn pyramid(&self) -> &Pyramid {
         &self.pyramid

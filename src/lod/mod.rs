@@ -15,6 +15,7 @@ use crate::clipmap::{Clipmap, ClipmapConfig};
 use crate::error::Result;
 use crate::pyramid::Pyramid;
 use crate::scene::camera::{Camera, Frustum};
+use crate::scene::LodScheme;
 use crate::terrain::world::WorldMap;
 use serde::Serialize;
 use std::sync::Arc;
@@ -152,7 +153,11 @@ pub struct LodUpdate {
 /// triangles for a view (`mesh`). The two are separate timed passes, so
 /// the trade-off report can split LOD cost into update and mesh generation.
 pub trait Lod: Send {
-    fn name(&self) -> &'static str;
+    fn scheme(&self) -> LodScheme;
+    /// The scheme's name.
+    fn name(&self) -> &'static str {
+        self.scheme().name()
+    }
     /// Moves the scheme's state to the view.
     fn update(&mut self, view: &View) -> LodUpdate;
     /// The triangles for the view, culled to its frustum.
@@ -183,15 +188,20 @@ pub enum LodConfig {
 
 impl LodConfig {
     /// The scheme's name (as scenes and the CLI spell it).
-    pub fn name(&self) -> &'static str {
+    pub fn scheme(&self) -> LodScheme {
         match self {
-            LodConfig::Clipmap(_) => "clipmap",
-            LodConfig::BruteForce => "brute-force",
-            LodConfig::GeoMipMap(_) => "geomipmap",
-            LodConfig::Roam(_) => "roam",
-            LodConfig::Annulus(_) => "annulus",
-            LodConfig::Cdlod(_) => "cdlod",
+            LodConfig::Clipmap(_) => LodScheme::Clipmap,
+            LodConfig::BruteForce => LodScheme::BruteForce,
+            LodConfig::GeoMipMap(_) => LodScheme::Geomipmap,
+            LodConfig::Roam(_) => LodScheme::Roam,
+            LodConfig::Annulus(_) => LodScheme::Annulus,
+            LodConfig::Cdlod(_) => LodScheme::Cdlod,
         }
+    }
+
+    /// The scheme's name.
+    pub fn name(&self) -> &'static str {
+        self.scheme().name()
     }
 
     /// Pyramid levels the scheme reads (level 1 always exists where the map

@@ -15,6 +15,7 @@
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, View};
 use crate::pyramid::Pyramid;
+use crate::scene::LodScheme;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -393,8 +394,8 @@ fn nested_error(
 }
 
 impl Lod for Roam {
-    fn name(&self) -> &'static str {
-        "roam"
+    fn scheme(&self) -> LodScheme {
+        LodScheme::Roam
     }
     fn pyramid(&self) -> &Pyramid {
         &self.pyramid

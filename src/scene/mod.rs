@@ -3,6 +3,9 @@
 //! bad values are errors that name the file, line and column.
 
 pub mod camera;
+pub mod names;
+
+pub use names::{Effect, LodScheme};
 
 use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
 use crate::error::{Error, Result};
@@ -26,18 +29,6 @@ pub const MAX_COORDINATE: f64 = 1e12;
 
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
-
-pub use crate::shade::EFFECTS;
-
-/// The LOD schemes a scene can name.
-pub const LOD_SCHEMES: &[&str] = &[
-    "clipmap",
-    "brute-force",
-    "geomipmap",
-    "roam",
-    "annulus",
-    "cdlod",
-];
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(untagged)]
@@ -96,7 +87,7 @@ fn default_filter() -> String {
 #[serde(deny_unknown_fields)]
 pub struct Lod {
     #[serde(default = "default_scheme")]
-    pub scheme: String,
+    pub scheme: LodScheme,
     #[serde(default = "default_n")]
     pub n: i64,
     pub levels: Option<usize>,
@@ -120,8 +111,8 @@ pub struct Lod {
     pub range: Option<f64>,
 }
 
-fn default_scheme() -> String {
-    "clipmap".into()
+fn default_scheme() -> LodScheme {
+    LodScheme::Clipmap
 }
 fn default_n() -> i64 {
     63
@@ -179,7 +170,7 @@ pub struct Scene {
     pub camera: CameraSpec,
     pub image: ImageSpec,
     #[serde(default)]
-    pub effects: Vec<String>,
+    pub effects: Vec<Effect>,
     #[serde(default)]
     pub shading: ShadeParams,
     /// Folder that relative paths are resolved against.
@@ -309,7 +300,7 @@ impl Scene {
     /// filter the whole base level, and the height-ramp colours need the
     /// whole map's range unless the scene gives one.
     fn check_lazy(&self) -> Result<()> {
-        if self.lod.scheme != "clipmap" {
+        if self.lod.scheme != LodScheme::Clipmap {
             return Err(self.bad(
                 "pyramid.lazy",
                 format!(
@@ -322,7 +313,10 @@ impl Scene {
             return Err(self.bad("pyramid.budget", "must be at least 1 sample"));
         }
         let e = self.effects()?;
-        for (on, name) in [(e.shadows, "shadows"), (e.normal_map, "normal-map")] {
+        for (on, name) in [
+            (e.shadows, Effect::Shadows),
+            (e.normal_map, Effect::NormalMap),
+        ] {
             if on {
                 return Err(self.bad(
                     "pyramid.lazy",
@@ -382,13 +376,13 @@ impl Scene {
 
     /// The listed effects.
     pub fn effects(&self) -> Result<Effects> {
-        Effects::parse(&self.effects).map_err(|r| self.bad("effects", r))
+        Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))
     }
 
     /// The LOD scheme with its settings, checked.
     pub fn lod_config(&self) -> Result<LodConfig> {
         let l = &self.lod;
-        let morph = self.has_effect("morph");
+        let morph = self.has(Effect::Morph);
         let pow2 = |field: &str, v: usize, lo: usize, hi: usize| -> Result<usize> {
             if v.is_power_of_two() && (lo..=hi).contains(&v) {
                 Ok(v)
@@ -406,10 +400,10 @@ impl Scene {
                 Some(x) => Err(self.bad(field, format!("must be finite and > 0, got {x}"))),
             }
         };
-        Ok(match l.scheme.as_str() {
-            "clipmap" => LodConfig::Clipmap(self.clipmap_config()),
-            "brute-force" => LodConfig::BruteForce,
-            "geomipmap" => {
+        Ok(match l.scheme {
+            LodScheme::Clipmap => LodConfig::Clipmap(self.clipmap_config()),
+            LodScheme::BruteForce => LodConfig::BruteForce,
+            LodScheme::Geomipmap => {
                 let block = l.block.unwrap_or(33);
                 let cells = block
                     .checked_sub(1)
@@ -436,7 +430,7 @@ impl Scene {
                 };
                 LodConfig::GeoMipMap(geomipmap::Config { cells, mode, morph })
             }
-            "roam" => LodConfig::Roam(roam::Config {
+            LodScheme::Roam => LodConfig::Roam(roam::Config {
                 tau: positive("lod.tau", l.tau, 2.0)?,
                 max_triangles: match l.max_triangles {
                     Some(0) => return Err(self.bad("lod.max_triangles", "must be > 0")),
@@ -444,11 +438,11 @@ impl Scene {
                     None => 1 << 20,
                 },
             }),
-            "annulus" => LodConfig::Annulus(annulus::Config {
+            LodScheme::Annulus => LodConfig::Annulus(annulus::Config {
                 n: l.n,
                 rings: l.levels.unwrap_or(6).clamp(1, 24),
             }),
-            "cdlod" => LodConfig::Cdlod(cdlod::Config {
+            LodScheme::Cdlod => LodConfig::Cdlod(cdlod::Config {
                 grid: pow2("lod.grid", l.grid.unwrap_or(32), 4, 256)?,
                 range: match positive("lod.range", l.range, 2.0)? {
                     r if r >= 1.0 => r,
@@ -456,15 +450,6 @@ impl Scene {
                 },
                 morph,
             }),
-            s => {
-                return Err(self.bad(
-                    "lod.scheme",
-                    format!(
-                        "unknown scheme '{s}' (available: {})",
-                        LOD_SCHEMES.join(", ")
-                    ),
-                ))
-            }
         })
     }
 
@@ -496,8 +481,9 @@ impl Scene {
         }
     }
 
-    pub fn has_effect(&self, name: &str) -> bool {
-        self.effects.iter().any(|e| e == name)
+    /// Whether the scene lists effect `e`.
+    pub fn has(&self, e: Effect) -> bool {
+        self.effects.contains(&e)
     }
 
     pub fn clipmap_config(&self) -> ClipmapConfig {
@@ -506,7 +492,7 @@ impl Scene {
             levels: self.lod.levels,
             layout: self.lod.layout,
             transition: self.lod.transition,
-            morph: self.has_effect("morph"),
+            morph: self.has(Effect::Morph),
             texel_budget: self.lod.texel_budget,
         }
     }
@@ -553,23 +539,26 @@ impl Scene {
     /// This scene with another LOD scheme: "NAME" or "clipmap/LAYOUT"
     /// (strips, footprints).
     pub fn with_lod(&self, spec: &str) -> Result<Scene> {
-        let mut s = self.clone();
         let (name, layout) = match spec.split_once('/') {
             Some((n, l)) => (n, Some(l)),
             None => (spec, None),
         };
-        s.lod.scheme = name.to_string();
+        let scheme = name
+            .parse()
+            .map_err(|r: String| self.bad("lod.scheme", r))?;
+        let layout = layout
+            .map(|l| l.parse().map_err(|r: String| self.bad("lod.layout", r)))
+            .transpose()?;
+        self.with_scheme(scheme, layout)
+    }
+
+    /// This scene with scheme `scheme` (and, if given, the clipmap layout
+    /// `layout`), validated.
+    pub fn with_scheme(&self, scheme: LodScheme, layout: Option<Layout>) -> Result<Scene> {
+        let mut s = self.clone();
+        s.lod.scheme = scheme;
         if let Some(l) = layout {
-            s.lod.layout = match l {
-                "strips" => Layout::Strips,
-                "footprints" => Layout::Footprints,
-                other => {
-                    return Err(self.bad(
-                        "lod.layout",
-                        format!("unknown layout '{other}' (available: strips, footprints)"),
-                    ))
-                }
-            };
+            s.lod.layout = l;
         }
         s.validate()?;
         Ok(s)
@@ -584,8 +573,8 @@ pub struct Overrides {
     pub look_at: Option<[f64; 3]>,
     pub fov: Option<f64>,
     pub size: Option<[u32; 2]>,
-    pub lod: Option<String>,
-    pub effects: Option<Vec<String>>,
+    pub lod: Option<LodScheme>,
+    pub effects: Option<Vec<Effect>>,
 }
 
 impl Overrides {
@@ -637,8 +626,8 @@ impl Scene {
             self.image.width = w;
             self.image.height = h;
         }
-        if let Some(l) = &o.lod {
-            self.lod.scheme = l.clone();
+        if let Some(l) = o.lod {
+            self.lod.scheme = l;
         }
         if let Some(e) = &o.effects {
             self.effects = e.clone();

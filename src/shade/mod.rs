@@ -22,22 +22,11 @@ pub mod wireframe;
 
 use crate::lod::LevelInfo;
 use crate::raster::{unorm8, Path, Raster, NONE, RUN_LANES};
+use crate::scene::Effect;
 use normal_map::NormalMap;
 use rayon::prelude::*;
 use serde::Deserialize;
 use shadows::Lightmap;
-
-/// Effects a scene may list.
-pub const EFFECTS: &[&str] = &[
-    "lambert",
-    "phong",
-    "fog",
-    "shadows",
-    "normal-map",
-    "level-tint",
-    "wireframe",
-    "morph",
-];
 
 /// The effects a scene listed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -53,26 +42,19 @@ pub struct Effects {
 }
 
 impl Effects {
-    /// Parses effect names; unknown names and impossible combinations are
-    /// errors.
-    pub fn parse<S: AsRef<str>>(names: &[S]) -> Result<Self, String> {
+    /// The flags for a scene's list; impossible combinations are errors.
+    pub fn from_list(list: &[Effect]) -> Result<Self, String> {
         let mut e = Effects::default();
-        for n in names {
-            let flag = match n.as_ref() {
-                "lambert" => &mut e.lambert,
-                "phong" => &mut e.phong,
-                "fog" => &mut e.fog,
-                "shadows" => &mut e.shadows,
-                "normal-map" => &mut e.normal_map,
-                "level-tint" => &mut e.level_tint,
-                "wireframe" => &mut e.wireframe,
-                "morph" => &mut e.morph,
-                other => {
-                    return Err(format!(
-                        "unknown effect '{other}' (known: {})",
-                        EFFECTS.join(", ")
-                    ))
-                }
+        for &n in list {
+            let flag = match n {
+                Effect::Lambert => &mut e.lambert,
+                Effect::Phong => &mut e.phong,
+                Effect::Fog => &mut e.fog,
+                Effect::Shadows => &mut e.shadows,
+                Effect::NormalMap => &mut e.normal_map,
+                Effect::LevelTint => &mut e.level_tint,
+                Effect::Wireframe => &mut e.wireframe,
+                Effect::Morph => &mut e.morph,
             };
             *flag = true;
         }
@@ -585,18 +567,18 @@ mod tests {
         let none = Layout::new(&Effects::default());
         assert_eq!(none.len(), 3, "albedo only");
         assert!(none.normal.is_none() && none.uv.is_none() && none.fog.is_none());
-        let lit = Layout::new(&Effects::parse(&["lambert"]).unwrap());
+        let lit = Layout::new(&Effects::from_list(&[Effect::Lambert]).unwrap());
         assert!(lit.normal.is_some() && lit.uv.is_none());
-        let nm = Layout::new(&Effects::parse(&["lambert", "normal-map"]).unwrap());
+        let nm = Layout::new(&Effects::from_list(&[Effect::Lambert, Effect::NormalMap]).unwrap());
         assert!(nm.normal.is_none() && nm.uv.is_some() && nm.alpha.is_some());
-        let wire = Layout::new(&Effects::parse(&["wireframe", "level-tint"]).unwrap());
+        let wire =
+            Layout::new(&Effects::from_list(&[Effect::Wireframe, Effect::LevelTint]).unwrap());
         assert_eq!(wire.linear, vec![true; 6]);
     }
 
     #[test]
     fn bad_effect_lists_are_errors() {
-        assert!(Effects::parse(&["bloom"]).unwrap_err().contains("bloom"));
-        assert!(Effects::parse(&["normal-map"])
+        assert!(Effects::from_list(&[Effect::NormalMap])
             .unwrap_err()
             .contains("lighting"));
     }

@@ -21,26 +21,30 @@
 //! `far_depth_pixels` the others. Brute-force renders are shared by all
 //! schemes of one run.
 
+use crate::clipmap::Layout;
 use crate::error::Result;
 use crate::frame::stats::Passes;
 use crate::frame::surface::Surface;
 use crate::render::{self, Image, RenderOptions, Session};
 use crate::scene::camera::Camera;
-use crate::scene::Scene;
+use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics;
 use crate::studies::views;
 use glam::DVec3;
 use serde::Serialize;
 
-/// Schemes `--lod all` surveys (brute force is the reference).
-pub const ALL: &[&str] = &[
-    "clipmap/strips",
-    "clipmap/footprints",
-    "geomipmap",
-    "roam",
-    "cdlod",
-    "annulus",
-];
+/// Schemes `--lod all` surveys: every scheme but brute force (the
+/// reference), the clipmap in each layout (`clipmap/strips`, …).
+pub fn all() -> Vec<String> {
+    LodScheme::ALL
+        .iter()
+        .flat_map(|&s| match s {
+            LodScheme::BruteForce => vec![],
+            LodScheme::Clipmap => Layout::ALL.iter().map(|l| format!("{s}/{l}")).collect(),
+            _ => vec![s.to_string()],
+        })
+        .collect()
+}
 
 #[derive(Clone, Debug, Serialize)]
 pub struct SchemeCracks {
@@ -86,7 +90,7 @@ pub fn survey_scene(scene: &Scene, size: [u32; 2]) -> Scene {
     s.image.background = [1.0, 0.0, 0.0];
     s.image.width = size[0];
     s.image.height = size[1];
-    s.effects.retain(|e| e == "morph");
+    s.effects.retain(|e| *e == Effect::Morph);
     s
 }
 
@@ -101,7 +105,10 @@ pub fn survey(
 ) -> Result<CrackReport> {
     let base = survey_scene(scene, size);
     let opts = RenderOptions::default();
-    let mut brute = Session::new(&base.with_lod("brute-force")?, &mut Passes::default())?;
+    let mut brute = Session::new(
+        &base.with_scheme(LodScheme::BruteForce, None)?,
+        &mut Passes::default(),
+    )?;
     let mut sessions = schemes
         .iter()
         .map(|s| Session::new(&base.with_lod(s)?, &mut Passes::default()))
@@ -298,6 +305,21 @@ pub fn classify(surface: &Surface, camera: &Camera, dir: DVec3, domain: &Domain)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn all_is_every_scheme_but_brute_force_and_both_clipmap_layouts() {
+        assert_eq!(
+            all(),
+            [
+                "clipmap/strips",
+                "clipmap/footprints",
+                "geomipmap",
+                "roam",
+                "cdlod",
+                "annulus"
+            ]
+        );
+    }
 
     /// A flat 4×4-cell grid of 1 m cells at height 0 (two triangles a
     /// cell), optionally without one triangle or with its right half

@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, Session};
-use crate::scene::Scene;
+use crate::scene::{LodScheme, Scene};
 use crate::studies::metrics;
 use crate::studies::views;
 use serde::Serialize;
@@ -47,7 +47,7 @@ pub fn fly(
 ) -> Result<FlyReport> {
     let opts = RenderOptions::default();
     let mut session = Session::new(scene, &mut Passes::default())?;
-    let mut brute = if popping && scene.lod.scheme != "brute-force" {
+    let mut brute = if popping && scene.lod.scheme != LodScheme::BruteForce {
         Some(Session::new(
             &scene.with_lod("brute-force")?,
             &mut Passes::default(),

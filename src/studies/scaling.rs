@@ -17,7 +17,7 @@ use crate::error::{Error, Result};
 use crate::frame::stats::{median, Passes};
 use crate::pyramid::Pyramid;
 use crate::render::{self, RenderOptions, Session};
-use crate::scene::Scene;
+use crate::scene::{LodScheme, Scene};
 use crate::terrain::procedural::Procedural;
 use serde::Serialize;
 use std::sync::Arc;
@@ -194,12 +194,12 @@ pub struct Report {
 
 /// The scene for one size: the default scene's camera and shading over a
 /// procedural map of `size`², with scheme `lod`.
-fn scene(base: &Scene, size: usize, lod: &str, opts: &Options) -> Scene {
+fn scene(base: &Scene, size: usize, lod: LodScheme, opts: &Options) -> Scene {
     let mut s = base.clone();
     let seed = base.terrain.procedural.as_ref().map_or(20041, |p| p.seed);
     s.terrain.file = None;
     s.terrain.procedural = Some(Procedural::new(seed, size, size));
-    s.lod.scheme = lod.into();
+    s.lod.scheme = lod;
     s.lod.n = opts.n;
     s.lod.levels = Some(opts.levels);
     s.image.width = opts.image[0];
@@ -243,7 +243,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             "must be within 1..=1000",
         ));
     }
-    scene(base, opts.sizes[0], "clipmap", opts).validate()?;
+    scene(base, opts.sizes[0], LodScheme::Clipmap, opts).validate()?;
     // First, in a process that has built nothing yet.
     tick("lazy first frame");
     let first_frame = first_frame(base, opts)?;
@@ -253,7 +253,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     let (mut hm_bytes, mut pyr_bytes) = (0, 0);
     for &size in &opts.sizes {
         tick(&format!("building {size}²"));
-        let s = scene(base, size, "clipmap", opts);
+        let s = scene(base, size, LodScheme::Clipmap, opts);
         s.validate()?;
         let mut passes = Passes::default();
         let session = Session::new(&s, &mut passes)?;
@@ -309,7 +309,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     // Brute force on the sizes it can afford.
     for row in rows.iter_mut().filter(|r| r.size <= opts.brute_max) {
         tick(&format!("brute force {}²", row.size));
-        let s = scene(base, row.size, "brute-force", opts);
+        let s = scene(base, row.size, LodScheme::BruteForce, opts);
         let mut session = Session::new(&s, &mut Passes::default())?;
         let mut t = Vec::new();
         for _ in 0..3 {
@@ -343,7 +343,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 /// are drawn.
 fn first_frame(base: &Scene, opts: &Options) -> Result<FirstFrameRow> {
     let size = *opts.sizes.last().expect("one size at least");
-    let mut s = scene(base, size, "clipmap", opts);
+    let mut s = scene(base, size, LodScheme::Clipmap, opts);
     s.lod.n = opts.first_n;
     s.lod.levels = None;
     s.pyramid.lazy = true;

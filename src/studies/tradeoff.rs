@@ -7,11 +7,12 @@
 //! supersampling, is measured the same way against a 64× render of the
 //! same mesh.
 
+use crate::clipmap::Layout;
 use crate::error::Result;
 use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
 use crate::scene::camera::Camera;
-use crate::scene::Scene;
+use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics::{self, ImageError};
 use crate::studies::views::{self, NamedView};
 use serde::Serialize;
@@ -80,8 +81,13 @@ pub struct Options {
     pub quick: bool,
 }
 
-fn variant(scene: &Scene, lod: &str, edit: impl FnOnce(&mut Scene)) -> Result<Scene> {
-    let mut s = scene.with_lod(lod)?;
+fn variant(
+    scene: &Scene,
+    lod: LodScheme,
+    layout: Option<Layout>,
+    edit: impl FnOnce(&mut Scene),
+) -> Result<Scene> {
+    let mut s = scene.with_scheme(lod, layout)?;
     edit(&mut s);
     s.validate()?;
     Ok(s)
@@ -90,49 +96,46 @@ fn variant(scene: &Scene, lod: &str, edit: impl FnOnce(&mut Scene)) -> Result<Sc
 /// The sweep: every scheme at several settings (fewer when `quick`).
 pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     let mut out = Vec::new();
-    let mut add = |lod: &str, config: String, s: Scene, samples: u32| {
+    let mut add = |config: String, s: Scene, samples: u32| {
         out.push(Setting {
-            lod: lod.to_string(),
+            lod: s.lod.scheme.to_string(),
             config,
             scene: s,
             samples,
         })
     };
     let morph = |s: &mut Scene, on: bool| {
-        s.effects.retain(|e| e != "morph");
+        s.effects.retain(|e| *e != Effect::Morph);
         if on {
-            s.effects.push("morph".into());
+            s.effects.push(Effect::Morph);
         }
     };
     add(
-        "brute-force",
         "full".into(),
-        scene.with_lod("brute-force")?,
+        scene.with_scheme(LodScheme::BruteForce, None)?,
         1,
     );
     let ns: &[i64] = if quick { &[15, 31] } else { &[15, 31, 63, 127] };
     for &n in ns {
-        let s = variant(scene, "clipmap/strips", |s| {
+        let s = variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
             s.lod.n = n;
             s.lod.levels = None;
             morph(s, true);
         })?;
-        add("clipmap", format!("n={n} strips"), s, 1);
+        add(format!("n={n} strips"), s, 1);
     }
     let n = if quick { 15 } else { 31 };
     add(
-        "clipmap",
         format!("n={n} footprints"),
-        variant(scene, "clipmap/footprints", |s| {
+        variant(scene, LodScheme::Clipmap, Some(Layout::Footprints), |s| {
             s.lod.n = n;
             morph(s, true);
         })?,
         1,
     );
     add(
-        "clipmap",
         format!("n={n} morph off"),
-        variant(scene, "clipmap/strips", |s| {
+        variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
             s.lod.n = n;
             morph(s, false);
         })?,
@@ -141,9 +144,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     if !quick {
         for f in ["point", "box"] {
             add(
-                "clipmap",
                 format!("n={n} {f} filter"),
-                variant(scene, "clipmap/strips", |s| {
+                variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
                     s.lod.n = n;
                     s.pyramid.filter = f.into();
                     morph(s, true);
@@ -155,9 +157,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
         // inner edge (m − 3, m = (n+1)/4).
         for w in [1.0f32, ((n + 1) / 4 - 3) as f32] {
             add(
-                "clipmap",
                 format!("n={n} w={w}"),
-                variant(scene, "clipmap/strips", |s| {
+                variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
                     s.lod.n = n;
                     s.lod.transition = Some(w);
                     morph(s, true);
@@ -173,9 +174,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     };
     for &tau in taus {
         add(
-            "geomipmap",
             format!("error tau={tau}px"),
-            variant(scene, "geomipmap", |s| {
+            variant(scene, LodScheme::Geomipmap, None, |s| {
                 s.lod.mode = Some("error".into());
                 s.lod.tau = Some(tau);
                 morph(s, true);
@@ -183,9 +183,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
             1,
         );
         add(
-            "roam",
             format!("tau={tau}px"),
-            variant(scene, "roam", |s| s.lod.tau = Some(tau))?,
+            variant(scene, LodScheme::Roam, None, |s| s.lod.tau = Some(tau))?,
             1,
         );
     }
@@ -199,9 +198,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
             for blocks in [2.0, 8.0] {
                 let d = blocks * 32.0 * cell;
                 add(
-                    "geomipmap",
                     format!("{mode} d={d:.0}m"),
-                    variant(scene, "geomipmap", |s| {
+                    variant(scene, LodScheme::Geomipmap, None, |s| {
                         s.lod.mode = Some(mode.into());
                         s.lod.distance = Some(d);
                         morph(s, true);
@@ -214,9 +212,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     let ranges: &[f64] = if quick { &[2.0] } else { &[1.0, 2.0, 4.0, 8.0] };
     for &r in ranges {
         add(
-            "cdlod",
             format!("grid=32 range={r}"),
-            variant(scene, "cdlod", |s| {
+            variant(scene, LodScheme::Cdlod, None, |s| {
                 s.lod.grid = Some(32);
                 s.lod.range = Some(r);
                 morph(s, true);
@@ -227,22 +224,26 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     let an: &[i64] = if quick { &[31] } else { &[31, 63, 127, 255] };
     for &n in an {
         add(
-            "annulus",
             format!("n={n}"),
-            variant(scene, "annulus", |s| {
+            variant(scene, LodScheme::Annulus, None, |s| {
                 s.lod.n = n;
                 s.lod.levels = Some(12);
             })?,
             1,
         );
     }
-    let ss = variant(scene, "clipmap/strips", |s| {
+    let ss = variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
         s.lod.n = 31;
         s.lod.levels = None;
         morph(s, true);
     })?;
     for k in [1u32, 4, 16] {
-        add("supersample", format!("{k}x (clipmap n=31)"), ss.clone(), k);
+        out.push(Setting {
+            lod: "supersample".into(),
+            config: format!("{k}x (clipmap n=31)"),
+            scene: ss.clone(),
+            samples: k,
+        });
     }
     Ok(out)
 }
