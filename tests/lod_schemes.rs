@@ -123,7 +123,11 @@ fn scheme_settings_are_validated() {
             "n = 15\nscheme = \"roam\"\nmax_triangles = 0",
             "> 0",
         ),
-        ("n = 15", "n = 15\nscheme = \"quadtree\"", "unknown scheme 'quadtree' (known: clipmap"),
+        (
+            "n = 15",
+            "n = 15\nscheme = \"quadtree\"",
+            "unknown scheme 'quadtree' (known: clipmap",
+        ),
     ] {
         let text = common::SMALL_SCENE.replace(from, to);
         let e = Scene::parse(&text, "s.toml", Path::new("."))

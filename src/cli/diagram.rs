@@ -22,7 +22,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::bail!("--size must be within 1..=16384, got {}", a.size);
     }
     let s = load_scene(&a.scene)?;
-    let (_, cm, world) = s.build_clipmap()?;
+    let (cm, world) = terraclip::studies::diagram::clipmap(&s)?;
     let cam = s.camera();
     let png = terraclip::studies::diagram::draw(&cm, Some((&cam, &world)), a.size)?;
     terraclip::error::write_atomic(&a.out, &png)?;

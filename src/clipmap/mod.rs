@@ -53,6 +53,21 @@ pub struct ClipmapConfig {
     pub texel_budget: Option<u64>,
 }
 
+impl ClipmapConfig {
+    /// The settings a scene's `[lod]` table gives; `morph` is whether the
+    /// scene lists geomorphing.
+    pub fn from_spec(l: &crate::scene::Lod, morph: bool) -> ClipmapConfig {
+        ClipmapConfig {
+            n: l.n,
+            levels: l.levels,
+            layout: l.layout,
+            transition: l.transition,
+            morph,
+            texel_budget: l.texel_budget,
+        }
+    }
+}
+
 impl Default for ClipmapConfig {
     fn default() -> Self {
         ClipmapConfig {

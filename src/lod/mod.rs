@@ -12,10 +12,10 @@ mod grid;
 pub mod roam;
 
 use crate::clipmap::{Clipmap, ClipmapConfig};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
 use crate::scene::camera::{Camera, Frustum};
-use crate::scene::LodScheme;
+use crate::scene::{self, LodScheme};
 use crate::terrain::world::WorldMap;
 use serde::Serialize;
 use std::sync::Arc;
@@ -187,6 +187,83 @@ pub enum LodConfig {
 }
 
 impl LodConfig {
+    /// The scheme and settings a scene's `[lod]` table asks for, checked;
+    /// `morph` is whether the scene lists geomorphing. Errors name the
+    /// field (`lod.tau`, …); the caller adds the scene's name.
+    pub fn from_spec(l: &scene::Lod, morph: bool) -> Result<LodConfig> {
+        let pow2 = |field: &str, v: usize, lo: usize, hi: usize| -> Result<usize> {
+            if v.is_power_of_two() && (lo..=hi).contains(&v) {
+                Ok(v)
+            } else {
+                Err(Error::value(
+                    field,
+                    format!("must be a power of two in {lo}..={hi}, got {v}"),
+                ))
+            }
+        };
+        let positive = |field: &str, v: Option<f64>, default: f64| -> Result<f64> {
+            match v {
+                None => Ok(default),
+                Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+                Some(x) => Err(Error::value(
+                    field,
+                    format!("must be finite and > 0, got {x}"),
+                )),
+            }
+        };
+        Ok(match l.scheme {
+            LodScheme::Clipmap => LodConfig::Clipmap(ClipmapConfig::from_spec(l, morph)),
+            LodScheme::BruteForce => LodConfig::BruteForce,
+            LodScheme::Geomipmap => {
+                let block = l.block.unwrap_or(33);
+                let cells = block
+                    .checked_sub(1)
+                    .filter(|c| c.is_power_of_two() && (4..=256).contains(c))
+                    .ok_or_else(|| {
+                        Error::value(
+                            "lod.block",
+                            format!("must be 2^k + 1 vertices with 5 <= block <= 257, got {block}"),
+                        )
+                    })?;
+                let distance = positive("lod.distance", l.distance, 500.0)?;
+                let mode = match l.mode.as_deref().unwrap_or("error") {
+                    "linear" => geomipmap::Mode::Linear { distance },
+                    "exponential" => geomipmap::Mode::Exponential { distance },
+                    "error" => geomipmap::Mode::Error {
+                        tau: positive("lod.tau", l.tau, 2.0)?,
+                    },
+                    m => {
+                        return Err(Error::value(
+                            "lod.mode",
+                            format!("unknown mode '{m}' (available: linear, exponential, error)"),
+                        ))
+                    }
+                };
+                LodConfig::GeoMipMap(geomipmap::Config { cells, mode, morph })
+            }
+            LodScheme::Roam => LodConfig::Roam(roam::Config {
+                tau: positive("lod.tau", l.tau, 2.0)?,
+                max_triangles: match l.max_triangles {
+                    Some(0) => return Err(Error::value("lod.max_triangles", "must be > 0")),
+                    Some(m) => m,
+                    None => 1 << 20,
+                },
+            }),
+            LodScheme::Annulus => LodConfig::Annulus(annulus::Config {
+                n: l.n,
+                rings: l.levels.unwrap_or(6).clamp(1, 24),
+            }),
+            LodScheme::Cdlod => LodConfig::Cdlod(cdlod::Config {
+                grid: pow2("lod.grid", l.grid.unwrap_or(32), 4, 256)?,
+                range: match positive("lod.range", l.range, 2.0)? {
+                    r if r >= 1.0 => r,
+                    r => return Err(Error::value("lod.range", format!("must be >= 1, got {r}"))),
+                },
+                morph,
+            }),
+        })
+    }
+
     /// The scheme's name (as scenes and the CLI spell it).
     pub fn scheme(&self) -> LodScheme {
         match self {

@@ -19,6 +19,7 @@
 use super::downsample::{self, Block, Scratch};
 use super::{Filter, Pyramid, PyramidLevel, RangeGrid, RANGE_TILE};
 use crate::terrain::procedural::Procedural;
+use crate::terrain::world::WorldMap;
 use crate::terrain::Heightmap;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -38,6 +39,32 @@ pub enum LazyBase {
     Procedural(Procedural),
     /// Already whole (a loaded file): only the coarser levels are lazy.
     Heightmap(Heightmap),
+}
+
+impl LazyBase {
+    /// Level 0 for a scene's `[terrain]` table, and its world placement: a
+    /// procedural terrain is not generated here, a file is loaded whole.
+    pub fn for_terrain(
+        spec: &crate::scene::Terrain,
+        base_dir: &std::path::Path,
+    ) -> crate::Result<(LazyBase, WorldMap)> {
+        match &spec.procedural {
+            Some(p) => {
+                p.validate()
+                    .map_err(|r| crate::Error::value("terrain.procedural", r))?;
+                let cell = spec.cell_size.as_ref().map_or([1.0; 2], |c| c.pair());
+                Ok((
+                    LazyBase::Procedural(p.clone()),
+                    WorldMap::for_terrain(spec, cell),
+                ))
+            }
+            None => {
+                let h = crate::terrain::load(spec, base_dir)?;
+                let world = WorldMap::for_terrain(spec, h.cell_size);
+                Ok((LazyBase::Heightmap(h), world))
+            }
+        }
+    }
 }
 
 /// How far a lazy pyramid has got.

@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::frame::stats::{Pass, Passes};
 use crate::frame::{Frame, FrameInput};
-use crate::lod::{Lod, LodUpdate, View};
+use crate::lod::{Lod, LodConfig, LodUpdate, View};
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
@@ -13,6 +13,7 @@ use crate::scene::camera::Camera;
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
+use crate::terrain;
 use crate::terrain::world::WorldMap;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -210,31 +211,38 @@ impl Session {
     /// Loads the heightmap and builds the pyramid (timed passes "terrain",
     /// "pyramid"). With `pyramid.lazy`, a procedural terrain is not
     /// generated and nothing is filtered here: the clipmap's updates build
-    /// the tiles they need.
+    /// the tiles they need. Each stage builds itself from its part of the
+    /// scene; errors come back naming the scene and the field.
     pub fn new(scene: &Scene, passes: &mut Passes) -> Result<Session> {
-        let filter = scene.filter()?;
-        let cfg = scene.lod_config()?;
-        let effects = scene.effects()?;
+        Self::build(scene, passes).map_err(|e| scene.named(e))
+    }
+
+    fn build(scene: &Scene, passes: &mut Passes) -> Result<Session> {
+        let filter = scene.pyramid.filter;
+        let effects = Effects::from_list(&scene.effects).map_err(|r| Error::value("effects", r))?;
+        let cfg = LodConfig::from_spec(&scene.lod, effects.morph)?;
         let (pyramid, world) = if scene.pyramid.lazy {
-            let (base, world) = passes.time("terrain", || scene.lazy_base())?;
+            let (base, world) = passes.time("terrain", || {
+                LazyBase::for_terrain(&scene.terrain, &scene.base_dir)
+            })?;
             let [w, h] = match &base {
                 LazyBase::Procedural(p) => [p.width, p.height],
                 LazyBase::Heightmap(h) => [h.width(), h.height()],
             };
             let count = cfg.pyramid_levels(w, h);
             let p = Pyramid::lazy(base, filter, count, scene.pyramid.budget)
-                .map_err(|r| Error::value(format!("{}: pyramid", scene.origin), r))?;
+                .map_err(|r| Error::value("pyramid", r))?;
             (p, world)
         } else {
-            let h = passes.time("terrain", || scene.heightmap())?;
-            let world = scene.world(&h);
+            let h = passes.time("terrain", || terrain::load(&scene.terrain, &scene.base_dir))?;
+            let world = WorldMap::for_terrain(&scene.terrain, h.cell_size);
             let count = cfg.pyramid_levels(h.width(), h.height());
             let p = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
             (p, world)
         };
         // The scheme holds the only reference, so a lazy pyramid grows in
         // place.
-        let lod = scene.new_lod(&cfg, Arc::new(pyramid))?;
+        let lod = cfg.build(Arc::new(pyramid))?;
         Ok(Session {
             world,
             filter,

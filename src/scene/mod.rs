@@ -7,19 +7,16 @@ pub mod names;
 
 pub use names::{Effect, LodScheme};
 
-use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
+use crate::clipmap::Layout;
 use crate::error::{Error, Result};
-use crate::lod::{annulus, cdlod, geomipmap, roam, LodConfig};
-use crate::pyramid::{Filter, LazyBase, Pyramid};
+use crate::lod::LodConfig;
+use crate::pyramid::Filter;
 use crate::shade::{Effects, ShadeParams};
 use crate::terrain::procedural::Procedural;
-use crate::terrain::world::WorldMap;
-use crate::terrain::Heightmap;
 use camera::Camera;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// The embedded default scene (procedural, no files needed).
 pub const DEFAULT_SCENE: &str = include_str!("default.toml");
@@ -60,8 +57,8 @@ fn one() -> f64 {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PyramidSpec {
-    #[serde(default = "default_filter")]
-    pub filter: String,
+    #[serde(default, deserialize_with = "filter_from_name")]
+    pub filter: Filter,
     /// Build the pyramid in tiles around the viewer as frames need them
     /// (clipmap only), instead of whole before the first frame.
     #[serde(default)]
@@ -79,8 +76,12 @@ fn default_lazy_budget() -> u64 {
     DEFAULT_LAZY_BUDGET
 }
 
-fn default_filter() -> String {
-    "sinc-blackman".into()
+/// A filter by its name (`point`, `box`, `sinc-blackman[:TAPS]`).
+fn filter_from_name<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<Filter, D::Error> {
+    let s = String::deserialize(d)?;
+    Filter::parse(&s).map_err(serde::de::Error::custom)
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -183,7 +184,7 @@ pub struct Scene {
 
 fn default_pyramid() -> PyramidSpec {
     PyramidSpec {
-        filter: default_filter(),
+        filter: Filter::default(),
         lazy: false,
         budget: DEFAULT_LAZY_BUDGET,
     }
@@ -238,14 +239,13 @@ impl Scene {
             ));
         }
         if let Some(c) = &self.terrain.cell_size {
-            let [x, y] = cell_pair(c);
+            let [x, y] = c.pair();
             if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
                 return Err(self.bad("terrain.cell_size", "must be finite and > 0"));
             }
         }
-        Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))?;
         crate::clipmap::region::check_n(self.lod.n).map_err(|r| self.bad("lod.n", r))?;
-        self.lod_config()?;
+        LodConfig::from_spec(&self.lod, self.has(Effect::Morph)).map_err(|e| self.named(e))?;
         let c = &self.camera;
         match (c.look_at, c.yaw, c.pitch) {
             (Some(t), None, None) => {
@@ -285,7 +285,7 @@ impl Scene {
                 ),
             ));
         }
-        self.effects()?;
+        Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))?;
         self.shading
             .validate()
             .map_err(|(field, reason)| self.bad(field, reason))?;
@@ -312,7 +312,7 @@ impl Scene {
         if self.pyramid.budget == 0 {
             return Err(self.bad("pyramid.budget", "must be at least 1 sample"));
         }
-        let e = self.effects()?;
+        let e = Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))?;
         for (on, name) in [
             (e.shadows, Effect::Shadows),
             (e.normal_map, Effect::NormalMap),
@@ -333,128 +333,6 @@ impl Scene {
             ));
         }
         Ok(())
-    }
-
-    /// The terrain as a lazy pyramid's level 0, and its world mapping: a
-    /// procedural terrain is not generated here, a file is loaded whole.
-    pub fn lazy_base(&self) -> Result<(LazyBase, WorldMap)> {
-        match &self.terrain.procedural {
-            Some(p) => {
-                p.validate()
-                    .map_err(|r| self.bad("terrain.procedural", r))?;
-                let cell = self.terrain.cell_size.as_ref().map_or([1.0; 2], cell_pair);
-                let world =
-                    WorldMap::new(cell, self.terrain.vertical_scale).placed_at(self.terrain.origin);
-                Ok((LazyBase::Procedural(p.clone()), world))
-            }
-            None => {
-                let h = self.heightmap()?;
-                let world = self.world(&h);
-                Ok((LazyBase::Heightmap(h), world))
-            }
-        }
-    }
-
-    /// Loads or generates the terrain, applying the scene's cell size.
-    pub fn heightmap(&self) -> Result<Heightmap> {
-        let mut h = match (&self.terrain.file, &self.terrain.procedural) {
-            (Some(f), _) => Heightmap::load(&self.base_dir.join(f))?,
-            (_, Some(p)) => p
-                .generate()
-                .map_err(|r| self.bad("terrain.procedural", r))?,
-            _ => unreachable!("validated"),
-        };
-        if let Some(c) = &self.terrain.cell_size {
-            h.cell_size = cell_pair(c);
-        }
-        Ok(h)
-    }
-
-    pub fn world(&self, h: &Heightmap) -> WorldMap {
-        WorldMap::new(h.cell_size, self.terrain.vertical_scale).placed_at(self.terrain.origin)
-    }
-
-    /// The listed effects.
-    pub fn effects(&self) -> Result<Effects> {
-        Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))
-    }
-
-    /// The LOD scheme with its settings, checked.
-    pub fn lod_config(&self) -> Result<LodConfig> {
-        let l = &self.lod;
-        let morph = self.has(Effect::Morph);
-        let pow2 = |field: &str, v: usize, lo: usize, hi: usize| -> Result<usize> {
-            if v.is_power_of_two() && (lo..=hi).contains(&v) {
-                Ok(v)
-            } else {
-                Err(self.bad(
-                    field,
-                    format!("must be a power of two in {lo}..={hi}, got {v}"),
-                ))
-            }
-        };
-        let positive = |field: &str, v: Option<f64>, default: f64| -> Result<f64> {
-            match v {
-                None => Ok(default),
-                Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-                Some(x) => Err(self.bad(field, format!("must be finite and > 0, got {x}"))),
-            }
-        };
-        Ok(match l.scheme {
-            LodScheme::Clipmap => LodConfig::Clipmap(self.clipmap_config()),
-            LodScheme::BruteForce => LodConfig::BruteForce,
-            LodScheme::Geomipmap => {
-                let block = l.block.unwrap_or(33);
-                let cells = block
-                    .checked_sub(1)
-                    .filter(|c| c.is_power_of_two() && (4..=256).contains(c))
-                    .ok_or_else(|| {
-                        self.bad(
-                            "lod.block",
-                            format!("must be 2^k + 1 vertices with 5 <= block <= 257, got {block}"),
-                        )
-                    })?;
-                let distance = positive("lod.distance", l.distance, 500.0)?;
-                let mode = match l.mode.as_deref().unwrap_or("error") {
-                    "linear" => geomipmap::Mode::Linear { distance },
-                    "exponential" => geomipmap::Mode::Exponential { distance },
-                    "error" => geomipmap::Mode::Error {
-                        tau: positive("lod.tau", l.tau, 2.0)?,
-                    },
-                    m => {
-                        return Err(self.bad(
-                            "lod.mode",
-                            format!("unknown mode '{m}' (available: linear, exponential, error)"),
-                        ))
-                    }
-                };
-                LodConfig::GeoMipMap(geomipmap::Config { cells, mode, morph })
-            }
-            LodScheme::Roam => LodConfig::Roam(roam::Config {
-                tau: positive("lod.tau", l.tau, 2.0)?,
-                max_triangles: match l.max_triangles {
-                    Some(0) => return Err(self.bad("lod.max_triangles", "must be > 0")),
-                    Some(m) => m,
-                    None => 1 << 20,
-                },
-            }),
-            LodScheme::Annulus => LodConfig::Annulus(annulus::Config {
-                n: l.n,
-                rings: l.levels.unwrap_or(6).clamp(1, 24),
-            }),
-            LodScheme::Cdlod => LodConfig::Cdlod(cdlod::Config {
-                grid: pow2("lod.grid", l.grid.unwrap_or(32), 4, 256)?,
-                range: match positive("lod.range", l.range, 2.0)? {
-                    r if r >= 1.0 => r,
-                    r => return Err(self.bad("lod.range", format!("must be >= 1, got {r}"))),
-                },
-                morph,
-            }),
-        })
-    }
-
-    pub fn filter(&self) -> Result<Filter> {
-        Filter::parse(&self.pyramid.filter).map_err(|r| self.bad("pyramid.filter", r))
     }
 
     /// The point the camera looks at (from look_at, or yaw and pitch).
@@ -486,52 +364,13 @@ impl Scene {
         self.effects.contains(&e)
     }
 
-    pub fn clipmap_config(&self) -> ClipmapConfig {
-        ClipmapConfig {
-            n: self.lod.n,
-            levels: self.lod.levels,
-            layout: self.lod.layout,
-            transition: self.lod.transition,
-            morph: self.has(Effect::Morph),
-            texel_budget: self.lod.texel_budget,
-        }
-    }
-
-    /// Levels the clipmap will have on heightmap `h` (pyramid levels to
-    /// build).
-    pub fn clipmap_levels(&self, h: &Heightmap) -> usize {
-        LodConfig::Clipmap(self.clipmap_config()).pyramid_levels(h.width(), h.height())
-    }
-
-    /// A clipmap over `pyramid`, with errors naming this scene.
-    pub fn new_clipmap(&self, pyramid: Arc<Pyramid>, cfg: ClipmapConfig) -> Result<Clipmap> {
-        Clipmap::new(pyramid, cfg).map_err(|e| self.named(e))
-    }
-
-    /// The scene's LOD scheme over `pyramid`, with errors naming this scene.
-    pub fn new_lod(
-        &self,
-        cfg: &LodConfig,
-        pyramid: Arc<Pyramid>,
-    ) -> Result<Box<dyn crate::lod::Lod>> {
-        cfg.build(pyramid).map_err(|e| self.named(e))
-    }
-
-    fn named(&self, e: Error) -> Error {
+    /// `e` with this scene's name before the field it names: the stages
+    /// report `lod.tau`, the user reads `golden/x.toml: lod.tau`.
+    pub fn named(&self, e: Error) -> Error {
         match e {
             Error::BadValue { field, reason } => self.bad(&field, reason),
             other => other,
         }
-    }
-
-    /// Heightmap → pyramid → clipmap, updated for the scene's camera.
-    pub fn build_clipmap(&self) -> Result<(Heightmap, Clipmap, WorldMap)> {
-        let h = self.heightmap()?;
-        let world = self.world(&h);
-        let pyramid = Arc::new(Pyramid::build(&h, self.filter()?, self.clipmap_levels(&h)));
-        let mut cm = self.new_clipmap(pyramid, self.clipmap_config())?;
-        cm.update(world.to_grid(DVec3::from_array(self.camera.position)));
-        Ok((h, cm, world))
     }
 }
 
@@ -636,10 +475,13 @@ impl Scene {
     }
 }
 
-fn cell_pair(c: &CellSize) -> [f64; 2] {
-    match *c {
-        CellSize::Square(s) => [s, s],
-        CellSize::Xy(xy) => xy,
+impl CellSize {
+    /// The (x, y) cell size, metres.
+    pub fn pair(&self) -> [f64; 2] {
+        match *self {
+            CellSize::Square(s) => [s, s],
+            CellSize::Xy(xy) => xy,
+        }
     }
 }
 

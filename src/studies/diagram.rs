@@ -3,14 +3,35 @@
 //! regions outlined thin, active regions outlined thick, the usable map
 //! bounds in grey and the viewer as a black dot with its view direction.
 
-use crate::clipmap::{region, Clipmap};
+use crate::clipmap::{region, Clipmap, ClipmapConfig};
 use crate::error::{Error, Result};
+use crate::lod::LodConfig;
+use crate::pyramid::Pyramid;
 use crate::scene::camera::Camera;
+use crate::scene::{Effect, Scene};
 use crate::terrain::world::WorldMap;
+use glam::DVec3;
+use std::sync::Arc;
 use tiny_skia::{Color, FillRule, Paint, PathBuilder, Pixmap, Rect as SkRect, Stroke, Transform};
 
 /// Colour for level l (cycled), also used by the `level-tint` effect.
 pub use crate::shade::level_tint::level_colour;
+
+/// The scene's clipmap, built (heightmap, pyramid, clipmap) and updated for
+/// its camera, with the world placement the diagram draws in.
+pub fn clipmap(scene: &Scene) -> Result<(Clipmap, WorldMap)> {
+    let build = || -> Result<(Clipmap, WorldMap)> {
+        let h = crate::terrain::load(&scene.terrain, &scene.base_dir)?;
+        let world = WorldMap::for_terrain(&scene.terrain, h.cell_size);
+        let cfg = ClipmapConfig::from_spec(&scene.lod, scene.has(Effect::Morph));
+        let levels = LodConfig::Clipmap(cfg.clone()).pyramid_levels(h.width(), h.height());
+        let pyramid = Arc::new(Pyramid::build(&h, scene.pyramid.filter, levels));
+        let mut cm = Clipmap::new(pyramid, cfg)?;
+        cm.update(world.to_grid(DVec3::from_array(scene.camera.position)));
+        Ok((cm, world))
+    };
+    build().map_err(|e| scene.named(e))
+}
 
 /// Draws the diagram at `size`×`size` pixels and returns PNG bytes.
 pub fn draw(cm: &Clipmap, camera: Option<(&Camera, &WorldMap)>, size: u32) -> Result<Vec<u8>> {

@@ -10,6 +10,7 @@
 use crate::clipmap::Layout;
 use crate::error::Result;
 use crate::frame::stats::Passes;
+use crate::pyramid::Filter;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
 use crate::scene::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
@@ -142,12 +143,12 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
         1,
     );
     if !quick {
-        for f in ["point", "box"] {
+        for (f, filter) in [("point", Filter::Point), ("box", Filter::Box)] {
             add(
                 format!("n={n} {f} filter"),
                 variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
                     s.lod.n = n;
-                    s.pyramid.filter = f.into();
+                    s.pyramid.filter = filter;
                     morph(s, true);
                 })?,
                 1,

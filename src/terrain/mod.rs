@@ -193,6 +193,28 @@ pub(crate) fn named<T>(path: &Path, r: std::result::Result<T, String>) -> Result
     r.map_err(|reason| Error::file(path, reason))
 }
 
+/// The terrain a scene's `[terrain]` table names, loaded from its file
+/// (relative to `base_dir`) or generated, with the table's cell size
+/// applied. Errors name the file, or the field (`terrain.procedural`).
+pub fn load(spec: &crate::scene::Terrain, base_dir: &Path) -> Result<Heightmap> {
+    let mut h = match (&spec.file, &spec.procedural) {
+        (Some(f), _) => Heightmap::load(&base_dir.join(f))?,
+        (_, Some(p)) => p
+            .generate()
+            .map_err(|r| Error::value("terrain.procedural", r))?,
+        (None, None) => {
+            return Err(Error::value(
+                "terrain",
+                "give exactly one of 'file' or 'procedural'",
+            ))
+        }
+    };
+    if let Some(c) = &spec.cell_size {
+        h.cell_size = c.pair();
+    }
+    Ok(h)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

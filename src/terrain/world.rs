@@ -19,6 +19,12 @@ pub struct WorldMap {
 }
 
 impl WorldMap {
+    /// The placement a scene's `[terrain]` table gives a map of cell size
+    /// `cell`: its vertical scale and origin.
+    pub fn for_terrain(spec: &crate::scene::Terrain, cell: [f64; 2]) -> Self {
+        WorldMap::new(cell, spec.vertical_scale).placed_at(spec.origin)
+    }
+
     pub fn new(cell: [f64; 2], vertical_scale: f64) -> Self {
         WorldMap {
             cell,
