@@ -16,6 +16,7 @@
 
 pub mod check;
 pub mod clipmap;
+pub mod cpu;
 pub mod error;
 pub mod frame;
 #[cfg(feature = "gpu")]

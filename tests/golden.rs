@@ -125,13 +125,13 @@ fn without_lighting_no_normals_are_computed() {
 fn terraclip_simd_selects_the_path() {
     let dir = std::env::temp_dir().join(format!("terraclip-simd-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    // Asked of the CPU here, not of `has_avx2_fma`, so that a detection
+    // Asked of the CPU here, not of `cpu::has_avx2_fma`, so that a detection
     // that lied would fail.
     #[cfg(target_arch = "x86_64")]
     let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
     #[cfg(not(target_arch = "x86_64"))]
     let avx2 = false;
-    assert_eq!(terraclip::raster::simd::has_avx2_fma(), avx2);
+    assert_eq!(terraclip::cpu::has_avx2_fma(), avx2);
     let run = |value: Option<&str>| {
         let out = dir.join(format!("{}.png", value.unwrap_or("unset")));
         let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"));

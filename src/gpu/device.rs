@@ -68,16 +68,7 @@ impl Gpu {
     /// True on the stack RASTER_RULES.md pins: lavapipe from Mesa 22.3.6 on
     /// x86-64 with FMA, through Vulkan. Parity must then be exact.
     pub fn exact_expected(&self) -> bool {
-        let fma = {
-            #[cfg(target_arch = "x86_64")]
-            {
-                std::arch::is_x86_feature_detected!("fma")
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            {
-                false
-            }
-        };
+        let fma = crate::cpu::has_fma();
         self.api == Api::Vulkan
             && self.info.name.starts_with("llvmpipe")
             && self.info.driver_info.contains("Mesa 22.3.6")

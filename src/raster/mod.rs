@@ -95,7 +95,7 @@ impl Path {
     /// Whether this path runs the AVX2 + FMA builds of the raster and
     /// shading loops on this CPU.
     pub fn uses_avx2_fma(self) -> bool {
-        self == Path::Simd && simd::has_avx2_fma()
+        self == Path::Simd && crate::cpu::has_avx2_fma()
     }
 
     /// What ran, as `render --json` reports it (`raster_path`): `scalar`,
@@ -453,7 +453,7 @@ pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster
                     let (x, y) = (tx0 as i64, ty0 as i64);
                     match opts.path {
                         Path::Scalar => tile::draw(t, id, x, y, buf),
-                        Path::Simd | Path::Portable => simd::draw(t, id, x, y, buf, avx2),
+                        Path::Simd | Path::Portable => simd::draw(avx2, t, id, x, y, buf),
                     }
                 }
                 let tw = (w - tx0 as usize).min(bin::TILE as usize);

@@ -64,34 +64,10 @@ fn draw_lanes(t: &Tri, id: u32, tx0: i64, ty0: i64, buf: &mut TileBuf) {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn draw_avx2(t: &Tri, id: u32, tx0: i64, ty0: i64, buf: &mut TileBuf) {
-    draw_lanes(t, id, tx0, ty0, buf)
-}
-
-/// True when the CPU has what the fast 8-lane build needs.
-pub fn has_avx2_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// 8-lane rasterisation of triangle `id` into the tile.
-pub fn draw(t: &Tri, id: u32, tx0: i64, ty0: i64, buf: &mut TileBuf, avx2: bool) {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 {
-        // SAFETY: `avx2` is only true when has_avx2_fma() said so.
-        unsafe { draw_avx2(t, id, tx0, ty0, buf) };
-        return;
-    }
-    let _ = avx2;
-    draw_lanes(t, id, tx0, ty0, buf)
+crate::cpu::avx2_fma_twin! {
+    /// 8-lane rasterisation of triangle `id` into the tile, in the AVX2 +
+    /// FMA build when `fast` (and the CPU has them).
+    pub fn draw(t: &Tri, id: u32, tx0: i64, ty0: i64, buf: &mut TileBuf) => draw_lanes
 }
 
 #[cfg(test)]

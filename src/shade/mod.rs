@@ -474,24 +474,13 @@ pub fn shade(s: &ShadeInputs, r: &Raster, path: Path) -> Vec<u8> {
     let fast = path.uses_avx2_fma();
     out.par_chunks_mut(w * 4).enumerate().for_each_init(
         || Scratch::new(w, s.layout.len()),
-        |sc, (py, row)| {
-            #[cfg(target_arch = "x86_64")]
-            if fast {
-                // SAFETY: `fast` is only true when the CPU has AVX2 and FMA.
-                unsafe { shade_row_fma(s, r, py, row, sc) };
-                return;
-            }
-            let _ = fast;
-            shade_row(s, r, py, row, sc);
-        },
+        |sc, (py, row)| shade_row_in(fast, s, r, py, row, sc),
     );
     out
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn shade_row_fma(s: &ShadeInputs, r: &Raster, py: usize, row: &mut [u8], sc: &mut Scratch) {
-    shade_row(s, r, py, row, sc)
+crate::cpu::avx2_fma_twin! {
+    fn shade_row_in(s: &ShadeInputs, r: &Raster, py: usize, row: &mut [u8], sc: &mut Scratch) => shade_row
 }
 
 /// The end of the run of pixels from x that share `ids[x]`: 8 ids compared

@@ -131,23 +131,11 @@ impl Procedural {
     /// tile needs about 0.5 (cos, sin) pairs per texel, and a band of 16
     /// full rows fewer still, where sampling each texel alone needs 32.
     fn fill_rect(&self, rect: [usize; 4], out: &mut [f32]) {
-        #[cfg(target_arch = "x86_64")]
-        if crate::raster::simd::has_avx2_fma() {
-            // SAFETY: the CPU has AVX2 and FMA.
-            unsafe { self.fill_rect_avx2(rect, out) };
-            return;
-        }
-        self.fill_rect_portable(rect, out)
-    }
-
-    /// [`Procedural::fill_rect`] built for AVX2: `floor` becomes one
-    /// instruction instead of a libm call (16 per texel). Rust never fuses
-    /// a multiply and an add on its own, so the bits are the portable ones
-    /// (`generate_equals_sample_bit_for_bit` compares with `sample`).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn fill_rect_avx2(&self, rect: [usize; 4], out: &mut [f32]) {
-        self.fill_rect_portable(rect, out)
+        // In the AVX2 + FMA build `floor` is one instruction instead of a
+        // libm call (16 per texel). Rust never fuses a multiply and an add
+        // on its own, so the bits are the portable ones
+        // (`generate_equals_sample_bit_for_bit` compares with `sample`).
+        fill_rect_in(true, self, rect, out)
     }
 
     #[inline(always)]
@@ -178,6 +166,10 @@ impl Procedural {
             }
         }
     }
+}
+
+crate::cpu::avx2_fma_twin! {
+    fn fill_rect_in(p: &Procedural, rect: [usize; 4], out: &mut [f32]) => Procedural::fill_rect_portable
 }
 
 /// Rows per task of [`Procedural::generate`].
