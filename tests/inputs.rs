@@ -438,3 +438,61 @@ fn a_closed_stdout_pipe_is_not_a_panic() {
         "the write into the closed pipe must end it"
     );
 }
+
+/// `render --heightmap` with no camera frames the map: the embedded scene's
+/// camera, far plane and fog were placed for a 10 km procedural map, and on
+/// any other map they showed a fog plane, or a view from inside the map.
+/// Framed, the whole map is in view: sky along the top and bottom rows
+/// (the map's far and near edges are inside the frame), terrain over much
+/// of the rest, with real contrast. With `--camera` the scene's own camera
+/// is kept, and its view runs off the bottom of the frame.
+#[test]
+fn a_heightmap_without_a_camera_is_framed() {
+    let view = |extra: &[&str]| {
+        let out = tmp(&format!("framed-{}.png", extra.len()));
+        let mut args = vec![
+            "render",
+            "--heightmap",
+            "tests/data/jacksboro_16.png",
+            "--size",
+            "160x90",
+        ];
+        args.extend_from_slice(extra);
+        args.extend(["-o", out.to_str().unwrap()]);
+        let (code, _, err) = cli(&args);
+        assert_eq!(code, 0, "{err}");
+        image::open(&out).unwrap().to_rgb8()
+    };
+    // The default scene's background, [0.55, 0.70, 0.90].
+    let sky = |p: &image::Rgb<u8>| {
+        p.0.iter()
+            .zip([140u8, 179, 230])
+            .all(|(&a, b)| a.abs_diff(b) <= 2)
+    };
+    let row_sky =
+        |img: &image::RgbImage, y: u32| (0..160).filter(|&x| sky(img.get_pixel(x, y))).count();
+    let framed = view(&[]);
+    let ground: Vec<u8> = framed
+        .pixels()
+        .filter(|p| !sky(p))
+        .map(|p| p.0[1])
+        .collect();
+    let share = ground.len() as f64 / (160.0 * 90.0);
+    let spread = ground.iter().max().unwrap() - ground.iter().min().unwrap();
+    assert!(
+        share > 0.25,
+        "terrain covers {:.0} % of the frame",
+        100.0 * share
+    );
+    assert!(
+        spread > 60,
+        "the green channel spans only {spread} levels: a fog plane"
+    );
+    assert_eq!(row_sky(&framed, 0), 160, "the map's far edge is in view");
+    assert_eq!(row_sky(&framed, 89), 160, "the map's near edge is in view");
+    let kept = view(&["--camera", "5120,-5120,900"]);
+    assert!(
+        row_sky(&kept, 89) < 160,
+        "--camera keeps the scene's own view"
+    );
+}

@@ -72,9 +72,14 @@ impl SceneArgs {
     }
 
     /// The scene at `path` (the embedded one if none) with these overrides.
+    /// A heightmap given without `--camera` or `--look-at` is framed: the
+    /// scene's camera, far plane and fog were placed for its own terrain.
     pub fn scene(&self, path: &Option<PathBuf>) -> anyhow::Result<Scene> {
         let mut s = load_scene(path)?;
         s.apply(&self.overrides())?;
+        if self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none() {
+            terraclip::studies::views::frame_terrain(&mut s)?;
+        }
         Ok(s)
     }
 }
