@@ -15,6 +15,7 @@
 
 pub mod device;
 mod textures;
+pub mod uniforms;
 
 pub use device::{Api, Gpu};
 
@@ -28,13 +29,12 @@ use crate::shade::{level_tint, Effects};
 use crate::terrain::world::WorldMap;
 use std::collections::HashMap;
 use textures::{Atlas, ToroidTextures};
+use uniforms::{
+    Draw, Globals, PassVertex, MAX_LEVELS, MODE_FOOTPRINT, MODE_PASSTHROUGH, MODE_STRIPS,
+};
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = include_str!("shaders/terrain.wgsl");
-/// Levels the uniform block describes.
-const MAX_LEVELS: usize = 32;
-/// Floats per passthrough vertex (see `PT` in the shader).
-const PT: usize = 24;
 /// Bytes of one `Draw` uniform slot (the dynamic-offset alignment).
 const DRAW_STRIDE: u64 = 256;
 
@@ -60,22 +60,6 @@ pub struct GpuRenderer {
     toroid: Option<ToroidTextures>,
     /// Static footprint corners for the current n: (n, buffer, range per shape).
     footprints: Option<(i64, wgpu::Buffer, ShapeRanges)>,
-}
-
-/// Little std140 writer for the uniform blocks.
-#[derive(Default)]
-struct Words(Vec<u32>);
-
-impl Words {
-    fn f(&mut self, v: &[f32]) {
-        self.0.extend(v.iter().map(|x| x.to_bits()));
-    }
-    fn i(&mut self, v: &[i32]) {
-        self.0.extend(v.iter().map(|x| *x as u32));
-    }
-    fn bytes(&self) -> &[u8] {
-        bytemuck::cast_slice(&self.0)
-    }
 }
 
 fn i32_of(v: i64, what: &str) -> Result<i32> {
@@ -267,9 +251,9 @@ impl GpuRenderer {
         let need_gradients = e.lit() && !e.normal_map;
 
         // Per-draw uniforms and the geometry they index.
-        let mut draws: Vec<(Words, std::ops::Range<u32>)> = vec![];
+        let mut draws: Vec<(Draw, std::ops::Range<u32>)> = vec![];
         let mut strips: Vec<u32> = vec![];
-        let mut passthrough: Vec<f32> = vec![];
+        let mut passthrough: Vec<PassVertex> = vec![];
         if let Some(c) = &clip {
             let cm = c.clipmap;
             let tt = self
@@ -284,36 +268,29 @@ impl GpuRenderer {
                 let o = lv.regions.origin;
                 let g = 1i64 << l;
                 let m = &lv.morph;
-                let mut base = Words::default();
-                let mode = match mesh.geometry {
-                    LevelGeometry::Strips { .. } => 1,
-                    LevelGeometry::Footprints { .. } => 2,
-                };
-                base.i(&[l as i32, g as i32, n as i32, mode]);
-                base.i(&[
-                    i32_of(o[0], "window origin")?,
-                    i32_of(o[1], "window origin")?,
-                    o[0].rem_euclid(n) as i32,
-                    o[1].rem_euclid(n) as i32,
-                ]);
                 let rel = [
                     i32_of(o[0] * g - u.origin[0], "window offset")?,
                     i32_of(u.origin[1] - o[1] * g, "window offset")?,
                 ];
-                let tail = |inst: [i32; 2]| {
-                    let mut t = Words::default();
-                    t.i(&[rel[0], rel[1], inst[0], inst[1]]);
-                    t.f(&[m.viewer[0], m.viewer[1], m.half, m.width]);
-                    t.i(&m.boundary);
-                    t.i(&m.stitched.map(i32::from));
-                    t.i(&[m.enabled as i32, m.enabled as i32, 0, 0]);
-                    t
+                let base = Draw {
+                    level: [l as i32, g as i32, n as i32, MODE_STRIPS],
+                    origin: [
+                        i32_of(o[0], "window origin")?,
+                        i32_of(o[1], "window origin")?,
+                        o[0].rem_euclid(n) as i32,
+                        o[1].rem_euclid(n) as i32,
+                    ],
+                    rel: [rel[0], rel[1], 0, 0],
+                    morph: [m.viewer[0], m.viewer[1], m.half, m.width],
+                    boundary: m.boundary,
+                    stitched: m.stitched.map(i32::from),
+                    flags: [m.enabled as i32, m.enabled as i32, 0, 0],
                 };
                 let mut slot = |mode: i32, inst: [i32; 2], range: std::ops::Range<u32>| {
-                    let mut words = Words(base.0.clone());
-                    words.0[3] = mode as u32;
-                    words.0.extend(tail(inst).0);
-                    draws.push((words, range));
+                    let mut d = base;
+                    d.level[3] = mode;
+                    d.rel[2..].copy_from_slice(&inst);
+                    draws.push((d, range));
                 };
                 match &mesh.geometry {
                     LevelGeometry::Strips { strip } => {
@@ -321,14 +298,14 @@ impl GpuRenderer {
                         for t in footprint::strip_to_triangles(strip).iter() {
                             strips.extend_from_slice(t);
                         }
-                        slot(mode, [0, 0], start..strips.len() as u32);
+                        slot(MODE_STRIPS, [0, 0], start..strips.len() as u32);
                     }
                     LevelGeometry::Footprints { instances, edge } => {
                         let ranges = &self.footprints.as_ref().expect("built").2;
                         for i in instances {
                             let (a, b) = ranges[&i.shape];
                             let off = [(i.offset[0] - o[0]) as i32, (i.offset[1] - o[1]) as i32];
-                            slot(mode, off, a..b);
+                            slot(MODE_FOOTPRINT, off, a..b);
                         }
                         // Blocks crossing the map edge: pulled like strips.
                         if !edge.is_empty() {
@@ -336,7 +313,7 @@ impl GpuRenderer {
                             for t in edge {
                                 strips.extend_from_slice(t);
                             }
-                            slot(1, [0, 0], start..strips.len() as u32);
+                            slot(MODE_STRIPS, [0, 0], start..strips.len() as u32);
                         }
                     }
                 }
@@ -345,23 +322,28 @@ impl GpuRenderer {
             // Passthrough: one draw per run of triangles on the same level.
             let lay = &frame.layout;
             let k = lay.len();
-            passthrough = vec![0.0; frame.positions.len() * PT];
-            for (i, rec) in passthrough.chunks_exact_mut(PT).enumerate() {
-                rec[..4].copy_from_slice(&u.clip(frame.positions[i]));
-                let a = &frame.attrs[i * k..(i + 1) * k];
-                let put = |rec: &mut [f32], at: usize, src: Option<usize>, len: usize| {
-                    if let Some(s) = src {
-                        rec[at..at + len].copy_from_slice(&a[s..s + len]);
-                    }
-                };
-                put(rec, 4, lay.albedo, 3);
-                put(rec, 7, lay.normal, 3);
-                put(rec, 10, lay.uv, 2);
-                put(rec, 12, lay.alpha, 1);
-                put(rec, 13, lay.fog, 1);
-                put(rec, 14, lay.view, 3);
-                put(rec, 20, lay.edge, 3);
-            }
+            passthrough = (0..frame.positions.len())
+                .map(|i| {
+                    let a = &frame.attrs[i * k..(i + 1) * k];
+                    let get = |dst: &mut [f32], src: Option<usize>| {
+                        if let Some(s) = src {
+                            dst.copy_from_slice(&a[s..s + dst.len()]);
+                        }
+                    };
+                    let mut v = PassVertex {
+                        clip: u.clip(frame.positions[i]),
+                        ..Default::default()
+                    };
+                    get(&mut v.albedo, lay.albedo);
+                    get(&mut v.normal, lay.normal);
+                    get(&mut v.uv, lay.uv);
+                    get(std::slice::from_mut(&mut v.alpha), lay.alpha);
+                    get(std::slice::from_mut(&mut v.fog), lay.fog);
+                    get(&mut v.view, lay.view);
+                    get(&mut v.edge, lay.edge);
+                    v
+                })
+                .collect();
             let levels = &frame.mesh.levels;
             let mut t = 0;
             while t < levels.len() {
@@ -369,70 +351,73 @@ impl GpuRenderer {
                 let end = (t..levels.len())
                     .find(|&j| levels[j] != l)
                     .unwrap_or(levels.len());
-                let mut words = Words::default();
-                words.i(&[l as i32, 1, 1, 0]);
-                words.0.resize(28, 0);
-                draws.push((words, 3 * t as u32..3 * end as u32));
+                let d = Draw {
+                    level: [l as i32, 1, 1, MODE_PASSTHROUGH],
+                    ..Default::default()
+                };
+                draws.push((d, 3 * t as u32..3 * end as u32));
                 t = end;
             }
         }
 
         // Global uniforms.
-        let mut gl = Words::default();
-        for c in u.view_proj {
-            gl.f(&c);
-        }
-        gl.f(&[u.eye[0], u.eye[1], u.eye[2], 1.0]);
         let fog_rate = crate::shade::fog::rate(frame.params.fog_density);
-        gl.f(&[u.cell[0], u.cell[1], u.vertical_scale, fog_rate]);
         let (lo, span) = frame.height_ramp;
         let p = &frame.params;
-        gl.f(&[lo, span, p.ambient, p.specular_strength]);
         let sun = p.sun_direction().map(|c| c as f32);
-        gl.f(&[sun[0], sun[1], sun[2], 0.0]);
         let fc = p.fog_colour.unwrap_or(frame.background);
-        gl.f(&[fc[0], fc[1], fc[2], 0.0]);
-        gl.f(&[p.wire_colour[0], p.wire_colour[1], p.wire_colour[2], 0.0]);
-        gl.f(&[w as f32, h as f32, 0.0, 0.0]);
         let lm = frame.resources.lightmap.as_ref();
         let lm_levels = lm.map_or(0, |l| l.pyramid.levels.len());
-        gl.i(&[
-            clip.as_ref().map_or(1, |c| c.clipmap.n() as i32),
-            lm_levels as i32,
-            lm.map_or(1, |l| l.scale as i32),
-            p.specular_squarings as i32,
-        ]);
         let lm_atlas = Atlas::lightmap(&self.gpu, lm)?;
         let nm_atlas = Atlas::normal_maps(&self.gpu, &frame.resources.normal_maps)?;
-        for l in 0..MAX_LEVELS {
+        let mut gl = Globals {
+            view_proj: u.view_proj,
+            eye: [u.eye[0], u.eye[1], u.eye[2], 1.0],
+            cell: [u.cell[0], u.cell[1], u.vertical_scale, fog_rate],
+            ramp: [lo, span, p.ambient, p.specular_strength],
+            sun: [sun[0], sun[1], sun[2], 0.0],
+            fog_colour: [fc[0], fc[1], fc[2], 0.0],
+            wire_colour: [p.wire_colour[0], p.wire_colour[1], p.wire_colour[2], 0.0],
+            size: [w as f32, h as f32, 0.0, 0.0],
+            ints: [
+                clip.as_ref().map_or(1, |c| c.clipmap.n() as i32),
+                lm_levels as i32,
+                lm.map_or(1, |l| l.scale as i32),
+                p.specular_squarings as i32,
+            ],
+            levels: [uniforms::Level::default(); MAX_LEVELS],
+        };
+        for (l, level) in gl.levels.iter_mut().enumerate() {
             let info = frame.resources.levels.get(l).copied().flatten();
             let o = info.map_or([0, 0], |i| i.origin);
             let nm = frame.resources.normal_maps.get(l).and_then(|m| m.as_ref());
             let nmo = nm.map_or([0, 0], |m| m.origin);
-            gl.i(&[
-                i32_of(o[0], "window origin")?,
-                i32_of(o[1], "window origin")?,
-                i32_of(nmo[0], "normal-map origin")?,
-                i32_of(nmo[1], "normal-map origin")?,
-            ]);
             let nms = nm.map_or([0, 0], |m| m.size.map(|s| s as i32));
-            gl.i(&[nms[0], nms[1], nm_atlas.row(l), nm.is_some() as i32]);
             let lml = lm.and_then(|m| m.pyramid.levels.get(l));
             let lmd = lml.map_or([0, 0], |p| [p.width as i32, p.height as i32]);
-            gl.i(&[lm_atlas.row(l), lmd[0], lmd[1], 0]);
             let t = level_tint::albedo(l as u32);
-            gl.f(&[t[0], t[1], t[2], 0.0]);
+            *level = uniforms::Level {
+                origin: [
+                    i32_of(o[0], "window origin")?,
+                    i32_of(o[1], "window origin")?,
+                    i32_of(nmo[0], "normal-map origin")?,
+                    i32_of(nmo[1], "normal-map origin")?,
+                ],
+                nm: [nms[0], nms[1], nm_atlas.row(l), nm.is_some() as i32],
+                lm: [lm_atlas.row(l), lmd[0], lmd[1], 0],
+                tint: [t[0], t[1], t[2], 0.0],
+            };
         }
 
         let dev = &self.gpu.device;
         let globals = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("globals"),
-            contents: gl.bytes(),
+            contents: bytemuck::bytes_of(&gl),
             usage: wgpu::BufferUsages::UNIFORM,
         });
         let mut draw_bytes = vec![0u8; draws.len().max(1) * DRAW_STRIDE as usize];
-        for (i, (words, _)) in draws.iter().enumerate() {
-            let b = words.bytes();
+        for (i, (d, _)) in draws.iter().enumerate() {
+            let b = bytemuck::bytes_of(d);
             let at = i * DRAW_STRIDE as usize;
             draw_bytes[at..at + b.len()].copy_from_slice(b);
         }

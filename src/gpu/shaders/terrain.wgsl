@@ -70,8 +70,16 @@ override WIREFRAME: bool = false;
 @group(1) @binding(2) var<storage, read> footprints: array<vec2<i32>>;
 @group(1) @binding(3) var<storage, read> passthrough: array<f32>;
 
-// Record of a passthrough vertex: clip (4), albedo (3), normal (3), uv (2),
-// alpha, fog, view (3), bary (3), edge (3), pad.
+// Record of a passthrough vertex (gpu::uniforms::PassVertex): float
+// offsets of the fields read here, and the record's length.
+const PT_CLIP: u32 = 0u;
+const PT_ALBEDO: u32 = 4u;
+const PT_NORMAL: u32 = 7u;
+const PT_UV: u32 = 10u;
+const PT_ALPHA: u32 = 12u;
+const PT_FOG: u32 = 13u;
+const PT_VIEW: u32 = 14u;
+const PT_EDGE: u32 = 20u;
 const PT: u32 = 24u;
 
 struct VOut {
@@ -305,14 +313,16 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VOut {
     if (D.level.w == 0) {
         // Brute force and other CPU-made meshes: the CPU vertex stage's
         // output, passed through.
-        o.pos = vec4<f32>(pt(vid, 0u), pt(vid, 1u), pt(vid, 2u), pt(vid, 3u));
-        o.albedo = vec3<f32>(pt(vid, 4u), pt(vid, 5u), pt(vid, 6u));
-        o.normal = vec3<f32>(pt(vid, 7u), pt(vid, 8u), pt(vid, 9u));
-        o.uv = vec2<f32>(pt(vid, 10u), pt(vid, 11u));
-        o.alpha = pt(vid, 12u);
-        o.fog = pt(vid, 13u);
-        o.view = vec3<f32>(pt(vid, 14u), pt(vid, 15u), pt(vid, 16u));
-        o.edge = vec3<f32>(pt(vid, 20u), pt(vid, 21u), pt(vid, 22u));
+        o.pos = vec4<f32>(
+            pt(vid, PT_CLIP), pt(vid, PT_CLIP + 1u), pt(vid, PT_CLIP + 2u), pt(vid, PT_CLIP + 3u)
+        );
+        o.albedo = vec3<f32>(pt(vid, PT_ALBEDO), pt(vid, PT_ALBEDO + 1u), pt(vid, PT_ALBEDO + 2u));
+        o.normal = vec3<f32>(pt(vid, PT_NORMAL), pt(vid, PT_NORMAL + 1u), pt(vid, PT_NORMAL + 2u));
+        o.uv = vec2<f32>(pt(vid, PT_UV), pt(vid, PT_UV + 1u));
+        o.alpha = pt(vid, PT_ALPHA);
+        o.fog = pt(vid, PT_FOG);
+        o.view = vec3<f32>(pt(vid, PT_VIEW), pt(vid, PT_VIEW + 1u), pt(vid, PT_VIEW + 2u));
+        o.edge = vec3<f32>(pt(vid, PT_EDGE), pt(vid, PT_EDGE + 1u), pt(vid, PT_EDGE + 2u));
         return o;
     }
     let m = morphed(vid);
