@@ -496,3 +496,94 @@ fn a_heightmap_without_a_camera_is_framed() {
         "--camera keeps the scene's own view"
     );
 }
+
+/// A GeoTIFF in geographic coordinates (SRTM, Copernicus DEM and GLOBE
+/// tiles are in degrees): its 30″ cells become metres at the map's centre
+/// latitude, and `info` names the CRS. Before, the cell size came out as
+/// 0.0083 "metres", and the map less than a metre wide. A projected one
+/// keeps its metres (or converts its feet).
+#[test]
+fn geographic_geotiffs_get_metres() {
+    use tiff::encoder::{colortype, TiffEncoder};
+    use tiff::tags::Tag;
+    let (w, h) = (12u32, 8u32);
+    let z: Vec<f32> = (0..w * h).map(|i| i as f32).collect();
+    let write = |name: &str, keys: &[u16], scale: [f64; 3], tie: [f64; 6]| {
+        let p = tmp(name);
+        let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+        let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
+        let e = img.encoder();
+        e.write_tag(Tag::ModelPixelScaleTag, &scale[..]).unwrap();
+        e.write_tag(Tag::ModelTiepointTag, &tie[..]).unwrap();
+        e.write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap();
+        img.write_data(&z).unwrap();
+        p
+    };
+    let info = |p: &Path| -> serde_json::Value {
+        let (code, out, err) = cli(&["info", p.to_str().unwrap(), "--json"]);
+        assert_eq!(code, 0, "{err}");
+        serde_json::from_str(&out).unwrap()
+    };
+    // 30″ cells, the top row at 46.1° N: the middle row at 46.1 − 4/120.
+    let arc = 1.0 / 120.0;
+    let geo = write(
+        "geographic.tif",
+        &[1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326],
+        [arc, arc, 0.0],
+        [0.0, 0.0, 0.0, 10.0, 46.1, 0.0],
+    );
+    let v = info(&geo);
+    assert_eq!(v["crs"], "EPSG:4326");
+    let lat = (46.1f64 - 4.0 * arc).to_radians();
+    // The usual WGS 84 series for a degree of longitude and of latitude.
+    let lon_m = 111_412.84 * lat.cos() - 93.5 * (3.0 * lat).cos() + 0.118 * (5.0 * lat).cos();
+    let lat_m = 111_132.954 - 559.822 * (2.0 * lat).cos() + 1.175 * (4.0 * lat).cos();
+    let got = [
+        v["cell_size_m"][0].as_f64().unwrap(),
+        v["cell_size_m"][1].as_f64().unwrap(),
+    ];
+    assert!(
+        (got[0] - arc * lon_m).abs() < 1e-3,
+        "x: {} m against {} m",
+        got[0],
+        arc * lon_m
+    );
+    assert!(
+        (got[1] - arc * lat_m).abs() < 1e-3,
+        "y: {} m against {} m",
+        got[1],
+        arc * lat_m
+    );
+    assert_eq!(v["cell_size"], v["cell_size_m"]);
+    // Projected, in US survey feet, then in metres by default.
+    let feet = write(
+        "utm-feet.tif",
+        &[
+            1, 1, 0, 3, 1024, 0, 1, 1, 3072, 0, 1, 32633, 3076, 0, 1, 9003,
+        ],
+        [100.0, 100.0, 0.0],
+        [0.0, 0.0, 0.0, 500_000.0, 5_000_000.0, 0.0],
+    );
+    let v = info(&feet);
+    assert_eq!(v["crs"], "EPSG:32633");
+    assert!((v["cell_size_m"][0].as_f64().unwrap() - 100.0 * 1200.0 / 3937.0).abs() < 1e-9);
+    let utm = write(
+        "utm.tif",
+        &[1, 1, 0, 2, 1024, 0, 1, 1, 3072, 0, 1, 32633],
+        [30.0, 30.0, 0.0],
+        [0.0, 0.0, 0.0, 500_000.0, 5_000_000.0, 0.0],
+    );
+    assert_eq!(info(&utm)["cell_size_m"], serde_json::json!([30.0, 30.0]));
+    // A geographic grid must say where it is.
+    let lost = write(
+        "nowhere.tif",
+        &[1, 1, 0, 1, 1024, 0, 1, 2],
+        [arc, arc, 0.0],
+        [0.0, 0.0, 0.0, 10.0, 146.0, 0.0],
+    );
+    fails_cleanly(
+        &["info", lost.to_str().unwrap()],
+        "nowhere.tif",
+        "not on the globe",
+    );
+}

@@ -19,18 +19,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let v = json!({
             "width": h.width(), "height": h.height(), "min": min, "max": max,
             "nodata_count": h.nodata_count(), "format": h.format,
-            "cell_size": h.cell_size,
+            "cell_size": h.cell_size, "cell_size_m": h.cell_size, "crs": h.crs,
         });
         println!("{v}");
     } else {
         println!(
-            "{}: {}×{} {}, heights {min}..{max} m, {} no-data, cell {:?} m",
+            "{}: {}×{} {}, heights {min}..{max} m, {} no-data, cell {:?} m, CRS {}",
             a.heightmap.display(),
             h.width(),
             h.height(),
             h.format,
             h.nodata_count(),
-            h.cell_size
+            h.cell_size,
+            h.crs.as_deref().unwrap_or("not given")
         );
     }
     Ok(())

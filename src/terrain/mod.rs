@@ -38,6 +38,11 @@ pub struct Heightmap {
     pub cell_size: [f64; 2],
     /// Short name of the source format (`png8`, `png16`, `tiff-f32`, `asc`, …).
     pub format: String,
+    /// The coordinate reference system a GeoTIFF declares (`EPSG:4326`,
+    /// `geographic`, `EPSG:32633`, `projected`), or `None` where the file
+    /// names none. A geographic grid's cell size is converted from degrees
+    /// to metres at the map's centre latitude.
+    pub crs: Option<String>,
 }
 
 /// Checks a width × height against [`MAX_SIDE`] and [`MAX_TEXELS`].
@@ -113,6 +118,7 @@ impl Heightmap {
             nodata_count,
             cell_size,
             format: format.into(),
+            crs: None,
         })
     }
 

@@ -1,6 +1,10 @@
 //! TIFF heightmaps, including GeoTIFF single-band files: 8/16/32-bit integer,
 //! 16/32/64-bit float. GeoTIFF's ModelPixelScale gives the cell size and
-//! GDAL_NODATA the no-data value.
+//! GDAL_NODATA the no-data value. The GeoKey directory says whether the
+//! grid is projected (cells in its linear unit, converted to metres) or
+//! geographic (cells in degrees, as SRTM, Copernicus DEM and GLOBE tiles
+//! are), which is converted to metres at the map's centre latitude on the
+//! WGS 84 ellipsoid.
 
 use super::{check_dimensions, named, Heightmap, MAX_TEXELS};
 use crate::error::{Error, Result};
@@ -30,16 +34,27 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
             ))
         }
     }
-    let cell = match dec.find_tag(Tag::ModelPixelScaleTag) {
+    let scale = match dec.find_tag(Tag::ModelPixelScaleTag) {
         Ok(Some(v)) => {
             let s = v.into_f64_vec().map_err(bad)?;
             if s.len() < 2 || !(s[0] > 0.0 && s[1] > 0.0 && s[0].is_finite() && s[1].is_finite()) {
                 return Err(Error::file(path, "GeoTIFF ModelPixelScale is not positive"));
             }
-            [s[0], s[1]]
+            Some([s[0], s[1]])
         }
-        _ => [1.0, 1.0],
+        _ => None,
     };
+    let keys = match dec.find_tag(Tag::GeoKeyDirectoryTag) {
+        Ok(Some(v)) => geo_keys(&v.into_u16_vec().map_err(bad)?)
+            .map_err(|r| Error::file(path, format!("GeoTIFF key directory: {r}")))?,
+        _ => GeoKeys::default(),
+    };
+    let tiepoint = match dec.find_tag(Tag::ModelTiepointTag) {
+        Ok(Some(v)) => Some(v.into_f64_vec().map_err(bad)?),
+        _ => None,
+    };
+    let (cell, crs) =
+        cell_in_metres(scale, &keys, tiepoint.as_deref(), h).map_err(|r| Error::file(path, r))?;
     let nodata = match dec.find_tag(Tag::GdalNodata) {
         Ok(Some(v)) => {
             let s = v.into_string().map_err(bad)?;
@@ -70,8 +85,153 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
             ))
         }
     };
-    named(
+    let mut map = named(
         path,
         Heightmap::from_values(w as usize, h as usize, values, nodata, cell, format),
-    )
+    )?;
+    map.crs = crs;
+    Ok(map)
+}
+
+/// The GeoKeys this reader uses (GeoTIFF 1.1, section 7).
+#[derive(Debug, Default, PartialEq)]
+struct GeoKeys {
+    /// GTModelTypeGeoKey (1024): 1 projected, 2 geographic, 3 geocentric.
+    model: Option<u16>,
+    /// GeographicTypeGeoKey (2048): an EPSG geographic CRS code.
+    geographic: Option<u16>,
+    /// ProjectedCSTypeGeoKey (3072): an EPSG projected CRS code.
+    projected: Option<u16>,
+    /// ProjLinearUnitsGeoKey (3076): an EPSG unit code.
+    linear_units: Option<u16>,
+}
+
+/// Reads the keys whose values sit in the directory itself (TIFFTagLocation
+/// 0), the only kind the keys above have.
+fn geo_keys(dir: &[u16]) -> std::result::Result<GeoKeys, String> {
+    let [version, _, _, count] = dir
+        .get(..4)
+        .and_then(|h| h.try_into().ok())
+        .ok_or("no header")?;
+    if version != 1 {
+        return Err(format!("version {version}, expected 1"));
+    }
+    let entries = dir
+        .get(4..4 + 4 * count as usize)
+        .ok_or_else(|| format!("{count} keys announced, {} present", (dir.len() - 4) / 4))?;
+    let mut keys = GeoKeys::default();
+    for e in entries.chunks_exact(4) {
+        let (id, location, value) = (e[0], e[1], e[3]);
+        let slot = match id {
+            1024 => &mut keys.model,
+            2048 => &mut keys.geographic,
+            3072 => &mut keys.projected,
+            3076 => &mut keys.linear_units,
+            _ => continue,
+        };
+        if location == 0 {
+            *slot = Some(value);
+        }
+    }
+    Ok(keys)
+}
+
+/// The cell size in metres and the CRS's name, from the pixel scale (in the
+/// CRS's units), the keys and the tie point (which places the top row, so
+/// a geographic grid's centre latitude is known). 32767 is GeoTIFF's
+/// "user-defined" code, which names no EPSG CRS.
+fn cell_in_metres(
+    scale: Option<[f64; 2]>,
+    keys: &GeoKeys,
+    tiepoint: Option<&[f64]>,
+    rows: u32,
+) -> std::result::Result<([f64; 2], Option<String>), String> {
+    let epsg = |code: Option<u16>, kind: &str| match code {
+        Some(c) if c != 32767 => format!("EPSG:{c}"),
+        _ => kind.to_string(),
+    };
+    match keys.model {
+        Some(2) => {
+            let [dx, dy] = scale.ok_or("a geographic GeoTIFF needs ModelPixelScale")?;
+            let t = tiepoint
+                .filter(|t| t.len() >= 6)
+                .ok_or("a geographic GeoTIFF needs ModelTiepoint to place its latitude")?;
+            // Latitude of the middle row: the tie point's raster row t[1]
+            // sits at latitude t[4], rows run south.
+            let lat = t[4] - (rows as f64 / 2.0 - t[1]) * dy;
+            if !(lat.is_finite() && lat.abs() <= 90.0) {
+                return Err(format!("centre latitude {lat}° is not on the globe"));
+            }
+            let [mx, my] = metres_per_degree(lat);
+            Ok((
+                [dx * mx, dy * my],
+                Some(epsg(keys.geographic, "geographic")),
+            ))
+        }
+        Some(1) => {
+            let [dx, dy] = scale.unwrap_or([1.0, 1.0]);
+            let unit = match keys.linear_units {
+                None | Some(9001) => 1.0,
+                Some(9002) => 0.3048,
+                Some(9003) => 1200.0 / 3937.0,
+                Some(u) => return Err(format!("linear unit EPSG:{u} is not metres or feet")),
+            };
+            Ok((
+                [dx * unit, dy * unit],
+                Some(epsg(keys.projected, "projected")),
+            ))
+        }
+        Some(m) => Err(format!(
+            "model type {m} (geocentric or unknown) is not a map"
+        )),
+        None => Ok((scale.unwrap_or([1.0, 1.0]), None)),
+    }
+}
+
+/// Metres per degree of longitude and of latitude at latitude `lat`
+/// (degrees), on the WGS 84 ellipsoid: the radius of the parallel and the
+/// meridian's radius of curvature, times π/180.
+fn metres_per_degree(lat: f64) -> [f64; 2] {
+    const A: f64 = 6_378_137.0;
+    const F: f64 = 1.0 / 298.257_223_563;
+    let e2 = F * (2.0 - F);
+    let phi = lat.to_radians();
+    let w = (1.0 - e2 * phi.sin().powi(2)).sqrt();
+    let prime_vertical = A / w;
+    let meridian = A * (1.0 - e2) / (w * w * w);
+    let rad = std::f64::consts::PI / 180.0;
+    [prime_vertical * phi.cos() * rad, meridian * rad]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against the usual series for WGS 84 (the "length of a degree"
+    /// tables): 111,412.84 cos φ − 93.5 cos 3φ + 0.118 cos 5φ along a
+    /// parallel, 111,132.954 − 559.822 cos 2φ + 1.175 cos 4φ − 0.0023 cos 6φ
+    /// along a meridian. With its coefficients rounded as quoted the series
+    /// is off by up to 0.033 m (at the equator), so they must agree within
+    /// 0.05 m.
+    #[test]
+    fn metres_per_degree_matches_the_series() {
+        for lat in [0.0f64, 15.0, 30.0, 45.0, 46.5, 60.0, 75.0, 89.0] {
+            let p = lat.to_radians();
+            let lon = 111_412.84 * p.cos() - 93.5 * (3.0 * p).cos() + 0.118 * (5.0 * p).cos();
+            let mer = 111_132.954 - 559.822 * (2.0 * p).cos() + 1.175 * (4.0 * p).cos()
+                - 0.0023 * (6.0 * p).cos();
+            let [x, y] = metres_per_degree(lat);
+            assert!((x - lon).abs() < 0.05, "{lat}°: {x} against {lon}");
+            assert!((y - mer).abs() < 0.05, "{lat}°: {y} against {mer}");
+        }
+    }
+
+    #[test]
+    fn key_directories_that_do_not_add_up_are_errors() {
+        assert!(geo_keys(&[1, 1, 0, 2, 1024, 0, 1, 2]).is_err());
+        assert!(geo_keys(&[2, 1, 0, 0]).is_err());
+        assert!(geo_keys(&[1, 1]).is_err());
+        let k = geo_keys(&[1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326]).unwrap();
+        assert_eq!((k.model, k.geographic), (Some(2), Some(4326)));
+    }
 }
