@@ -65,7 +65,7 @@ impl Gpu {
         format!("{} ({:?})", self.info.name, self.info.backend)
     }
 
-    /// True on the stack RASTER_RULES.md pins: lavapipe from Mesa 22.3.6 on
+    /// True on the stack docs/raster-rules.md pins: lavapipe from Mesa 22.3.6 on
     /// x86-64 with FMA, through Vulkan. Parity must then be exact.
     pub fn exact_expected(&self) -> bool {
         let fma = crate::cpu::has_fma();
