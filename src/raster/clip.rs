@@ -187,6 +187,45 @@ pub fn clip_triangle(
 mod tests {
     use super::*;
 
+    /// Each plane's outside bit, alone, for a vertex just beyond it; a
+    /// vertex exactly on a plane is inside (Mesa tests `< 0`).
+    #[test]
+    fn outcodes_name_the_planes_in_mesas_order() {
+        let beyond = [
+            [1.5, 0.0, 0.5, 1.0],
+            [-1.5, 0.0, 0.5, 1.0],
+            [0.0, 1.5, 0.5, 1.0],
+            [0.0, -1.5, 0.5, 1.0],
+            [0.0, 0.0, -0.5, 1.0],
+            [0.0, 0.0, 1.5, 1.0],
+        ];
+        for (p, c) in beyond.iter().enumerate() {
+            assert_eq!(outcode(*c), 1 << p, "plane {p}: {c:?}");
+        }
+        for on in [
+            [1.0, 1.0, 1.0, 1.0],
+            [-1.0, -1.0, 0.0, 1.0],
+            [0.0, 0.0, 0.5, 1.0],
+        ] {
+            assert_eq!(outcode(on), 0, "{on:?} lies on or inside every plane");
+        }
+    }
+
+    /// Mesa's null test is a zero 3-D cross product of the window
+    /// positions: collinear points (off the origin, with every difference
+    /// non-zero) are null, a real triangle is not, whichever component of
+    /// its normal is the one that is non-zero.
+    #[test]
+    fn null_triangles_are_collinear_in_3d() {
+        let v = |x: f32, y: f32, z: f32| WinVertex { x, y, z, oow: 1.0 };
+        let (a, b, c) = (v(1.0, 1.0, 1.0), v(2.0, 3.0, 4.0), v(3.0, 5.0, 7.0));
+        assert!(is_null(&a, &b, &c));
+        assert!(is_null(&a, &a, &b));
+        for d in [v(3.0, 5.0, 7.5), v(3.0, 5.5, 7.0), v(3.5, 5.0, 7.0)] {
+            assert!(!is_null(&a, &b, &d), "{:?}", (d.x, d.y, d.z));
+        }
+    }
+
     fn cv(c: [f32; 4], vp: &Viewport) -> ClipVertex {
         ClipVertex {
             clip: c,
