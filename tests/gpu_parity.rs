@@ -67,7 +67,7 @@ fn every_golden_scene_matches_the_cpu() {
         assert!(res.pass, "{name}: {res:?}");
         if exact {
             assert_eq!(
-                (res.colour_px_differ, res.depth_px_differ),
+                (res.diff.colour_px_differ, res.diff.depth_px_differ),
                 (0, 0),
                 "{name}"
             );
@@ -106,7 +106,7 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
         assert_eq!(res.frames, 100);
         if exact {
             assert_eq!(
-                (res.colour_px_differ, res.depth_px_differ),
+                (res.diff.colour_px_differ, res.diff.depth_px_differ),
                 (0, 0),
                 "{name}"
             );
@@ -323,7 +323,10 @@ fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
     assert!(unbuilt.windows(2).all(|w| w[1] <= w[0]), "{unbuilt:?}");
     assert_eq!(unbuilt.last(), Some(&0), "{unbuilt:?}");
     if exact {
-        assert_eq!((res.colour_px_differ, res.depth_px_differ), (0, 0));
+        assert_eq!(
+            (res.diff.colour_px_differ, res.diff.depth_px_differ),
+            (0, 0)
+        );
     }
 }
 

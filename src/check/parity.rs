@@ -120,6 +120,7 @@ pub struct Difference {
     /// depth where either image has depth) shorter or longer than its size
     /// says, such as an empty or cut-off readback. Every pixel then counts
     /// as differing and unmatched, and the comparison fails in both modes.
+    #[serde(skip)]
     pub size_mismatch: bool,
 }
 
@@ -322,19 +323,10 @@ impl Difference {
 #[derive(Clone, Debug, Serialize)]
 pub struct SceneParity {
     pub scene: String,
-    pub colour_px_differ: usize,
-    pub depth_px_differ: usize,
-    pub max_channel_diff: u8,
-    pub max_depth_ulp: u32,
-    /// Summed over frames; see [`Difference`].
-    pub shifted_px: usize,
-    pub unmatched_px: usize,
-    /// Summed over frames; see [`Difference::holes_px`].
-    pub holes_px: usize,
-    /// Summed over frames; see [`Difference::outside_band_px`].
-    pub outside_band_px: usize,
-    /// From the worst frame: its first unmatched pixel (CPU as `a`).
-    pub unmatched_example: Option<PixelPair>,
+    /// Over every frame: counts summed, largest differences the largest;
+    /// `unmatched_example` from the worst frame (CPU as `a`).
+    #[serde(flatten)]
+    pub diff: Difference,
     pub pass: bool,
     pub triangles: usize,
     /// Frames compared (1, or the path's length).
@@ -500,17 +492,10 @@ pub fn check(
         let diff = crate::check::golden::diff(got, &want.rgba).1;
         write_atomic(&out.join(format!("{name}-diff.png")), &diff.png()?)?;
     }
+    total.unmatched_example = worst.as_ref().and_then(|w| w.1.unmatched_example);
     Ok(SceneParity {
         scene: name.to_string(),
-        colour_px_differ: total.colour_px_differ,
-        depth_px_differ: total.depth_px_differ,
-        max_channel_diff: total.max_channel_diff,
-        max_depth_ulp: total.max_depth_ulp,
-        shifted_px: total.shifted_px,
-        unmatched_px: total.unmatched_px,
-        holes_px: total.holes_px,
-        outside_band_px: total.outside_band_px,
-        unmatched_example: worst.as_ref().and_then(|w| w.1.unmatched_example),
+        diff: total,
         pass,
         triangles,
         frames: frames.max(1),

@@ -61,12 +61,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 if res.pass { "ok" } else { "FAIL" },
                 res.scene,
                 res.frames,
-                res.colour_px_differ,
-                res.depth_px_differ,
-                res.max_channel_diff,
-                res.max_depth_ulp,
-                res.shifted_px,
-                res.unmatched_px
+                res.diff.colour_px_differ,
+                res.diff.depth_px_differ,
+                res.diff.max_channel_diff,
+                res.diff.max_depth_ulp,
+                res.diff.shifted_px,
+                res.diff.unmatched_px
             );
         }
         results.push(res);
