@@ -47,6 +47,14 @@ pub struct ClipDraw<'a> {
     pub update: Option<&'a UpdateStats>,
 }
 
+/// What `GpuRenderer::draw_list` builds: per-draw uniforms with the index
+/// range each draws, and the buffers those ranges index.
+struct DrawList {
+    draws: Vec<(Draw, std::ops::Range<u32>)>,
+    strips: Vec<u32>,
+    passthrough: Vec<PassVertex>,
+}
+
 /// Corner range of each static shape in the footprint buffer.
 type ShapeRanges = HashMap<ShapeId, (u32, u32)>;
 
@@ -243,18 +251,17 @@ impl GpuRenderer {
             })
     }
 
-    /// Draws `frame`; with `clip`, from the clipmap's toroidal textures.
-    pub fn draw(&mut self, frame: &Frame, clip: Option<ClipDraw>) -> Result<Image> {
-        let (w, h) = (frame.width, frame.height);
+    /// The per-draw uniforms and the geometry they index: a clipmap's
+    /// level strips and footprint instances (its toroid textures synced
+    /// first), or runs of passed-through triangles, one per level.
+    fn draw_list(&mut self, frame: &Frame, clip: Option<&ClipDraw>) -> Result<DrawList> {
         let u = &frame.uniforms;
         let e = frame.effects;
         let need_gradients = e.lit() && !e.normal_map;
-
-        // Per-draw uniforms and the geometry they index.
         let mut draws: Vec<(Draw, std::ops::Range<u32>)> = vec![];
         let mut strips: Vec<u32> = vec![];
         let mut passthrough: Vec<PassVertex> = vec![];
-        if let Some(c) = &clip {
+        if let Some(c) = clip {
             let cm = c.clipmap;
             let tt = self
                 .toroid
@@ -360,7 +367,22 @@ impl GpuRenderer {
             }
         }
 
-        // Global uniforms.
+        Ok(DrawList {
+            draws,
+            strips,
+            passthrough,
+        })
+    }
+
+    /// The uniforms every draw of `frame` shares.
+    fn globals(
+        frame: &Frame,
+        clip: Option<&ClipDraw>,
+        lm_atlas: &Atlas,
+        nm_atlas: &Atlas,
+    ) -> Result<Globals> {
+        let u = &frame.uniforms;
+        let (w, h) = (frame.width, frame.height);
         let fog_rate = crate::shade::fog::rate(frame.params.fog_density);
         let (lo, span) = frame.height_ramp;
         let p = &frame.params;
@@ -368,8 +390,6 @@ impl GpuRenderer {
         let fc = p.fog_colour.unwrap_or(frame.background);
         let lm = frame.resources.lightmap.as_ref();
         let lm_levels = lm.map_or(0, |l| l.pyramid.levels.len());
-        let lm_atlas = Atlas::lightmap(&self.gpu, lm)?;
-        let nm_atlas = Atlas::normal_maps(&self.gpu, &frame.resources.normal_maps)?;
         let mut gl = Globals {
             view_proj: u.view_proj,
             eye: [u.eye[0], u.eye[1], u.eye[2], 1.0],
@@ -380,7 +400,7 @@ impl GpuRenderer {
             wire_colour: [p.wire_colour[0], p.wire_colour[1], p.wire_colour[2], 0.0],
             size: [w as f32, h as f32, 0.0, 0.0],
             ints: [
-                clip.as_ref().map_or(1, |c| c.clipmap.n() as i32),
+                clip.map_or(1, |c| c.clipmap.n() as i32),
                 lm_levels as i32,
                 lm.map_or(1, |l| l.scale as i32),
                 p.specular_squarings as i32,
@@ -408,6 +428,22 @@ impl GpuRenderer {
                 tint: [t[0], t[1], t[2], 0.0],
             };
         }
+
+        Ok(gl)
+    }
+
+    /// Draws `frame`; with `clip`, from the clipmap's toroidal textures.
+    pub fn draw(&mut self, frame: &Frame, clip: Option<ClipDraw>) -> Result<Image> {
+        let (w, h) = (frame.width, frame.height);
+        let DrawList {
+            draws,
+            strips,
+            passthrough,
+        } = self.draw_list(frame, clip.as_ref())?;
+        let lm = frame.resources.lightmap.as_ref();
+        let lm_atlas = Atlas::lightmap(&self.gpu, lm)?;
+        let nm_atlas = Atlas::normal_maps(&self.gpu, &frame.resources.normal_maps)?;
+        let gl = Self::globals(frame, clip.as_ref(), &lm_atlas, &nm_atlas)?;
 
         let dev = &self.gpu.device;
         let globals = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -525,7 +561,7 @@ impl GpuRenderer {
         // The clear colour is the CPU's 8-bit background, so conversion
         // rounding cannot differ.
         let bg = frame.background.map(|c| unorm8(c) as f64 / 255.0);
-        let pipeline = self.pipeline(&e).clone();
+        let pipeline = self.pipeline(&frame.effects).clone();
         let dev = &self.gpu.device;
         let mut enc = dev.create_command_encoder(&Default::default());
         {
