@@ -4,13 +4,14 @@
 
 use crate::error::{Error, Result};
 
-/// Which wgpu backend to open.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Api {
-    /// Vulkan: lavapipe, or the GPU's driver.
-    Vulkan,
-    /// OpenGL through EGL, headless (no depth readback; unsupported).
-    Gl,
+crate::scene::names::named! {
+    /// Which wgpu backend to open.
+    pub enum Api ("graphics API") {
+        /// Vulkan: lavapipe, or the GPU's driver.
+        Vulkan => "vulkan",
+        /// OpenGL through EGL, headless (no depth readback; unsupported).
+        Gl => "gl",
+    }
 }
 
 /// An open device.

@@ -19,22 +19,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-/// Which back end draws a frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Backend {
-    /// The CPU reference rasteriser.
-    Cpu,
-    /// The wgpu back end.
-    Gpu,
-}
-
-impl Backend {
-    /// The name the command line and the statistics use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Backend::Cpu => "cpu",
-            Backend::Gpu => "gpu",
-        }
+crate::scene::names::named! {
+    /// Which back end draws a frame.
+    pub enum Backend ("back end") {
+        /// The CPU reference rasteriser.
+        Cpu => "cpu",
+        /// The wgpu back end.
+        Gpu => "gpu",
     }
 }
 

@@ -285,12 +285,12 @@ impl Scene {
                 ),
             ));
         }
-        Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))?;
+        let effects = Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))?;
         self.shading
             .validate()
             .map_err(|(field, reason)| self.bad(field, reason))?;
         if self.pyramid.lazy {
-            self.check_lazy()?;
+            self.check_lazy(&effects)?;
         }
         Ok(())
     }
@@ -299,7 +299,7 @@ impl Scene {
     /// read the whole map each frame, `shadows` and `normal-map` trace or
     /// filter the whole base level, and the height-ramp colours need the
     /// whole map's range unless the scene gives one.
-    fn check_lazy(&self) -> Result<()> {
+    fn check_lazy(&self, e: &Effects) -> Result<()> {
         if self.lod.scheme != LodScheme::Clipmap {
             return Err(self.bad(
                 "pyramid.lazy",
@@ -312,7 +312,6 @@ impl Scene {
         if self.pyramid.budget == 0 {
             return Err(self.bad("pyramid.budget", "must be at least 1 sample"));
         }
-        let e = Effects::from_list(&self.effects).map_err(|r| self.bad("effects", r))?;
         for (on, name) in [
             (e.shadows, Effect::Shadows),
             (e.normal_map, Effect::NormalMap),
