@@ -176,6 +176,30 @@ fn seeds(d: &Path) -> Vec<(&'static str, Vec<u8>)> {
     out
 }
 
+/// A 30″ geographic GeoTIFF (EPSG:4326) at 46° N.
+fn geotiff_seed(d: &Path) -> Vec<u8> {
+    use tiff::encoder::{colortype, TiffEncoder};
+    use tiff::tags::Tag;
+    let (w, h) = (9u32, 7u32);
+    let f: Vec<f32> = (0..w * h).map(|i| i as f32 * 3.0).collect();
+    let p = d.join("seed-geo.tif");
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+    let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
+    let e = img.encoder();
+    let arc = 1.0f64 / 120.0;
+    e.write_tag(Tag::ModelPixelScaleTag, &[arc, arc, 0.0][..])
+        .unwrap();
+    e.write_tag(Tag::ModelTiepointTag, &[0.0, 0.0, 0.0, 10.0, 46.0, 0.0][..])
+        .unwrap();
+    e.write_tag(
+        Tag::GeoKeyDirectoryTag,
+        &[1u16, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326][..],
+    )
+    .unwrap();
+    img.write_data(&f).unwrap();
+    std::fs::read(&p).unwrap()
+}
+
 const ASC: &str = "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\nNODATA_value -9999\n1 2 3 4\n5 -9999 7 8\n9 10 11 12\n";
 const SIDECAR: &str = r#"{"width": 4, "height": 3, "cell_size_m": {"x": 10.0, "y": 20.0}, "nodata": -32768.0, "raw_offset_m": 100.0, "raw_scale_m_per_unit": 2.0}"#;
 const SCENE: &str = r#"effects = ["morph", "lambert", "fog"]
@@ -279,6 +303,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("asc", 147),
     ("raw f32 + sidecar", 334),
     ("scene", 105),
+    ("geographic tif", 617),
 ];
 
 #[test]
@@ -372,6 +397,17 @@ fn ten_thousand_malformed_inputs_never_panic() {
     for _ in 0..2000 {
         let text = mutate_text(&mut rng, SCENE);
         record("scene", scene_once(&text, &d));
+        cases += 1;
+    }
+    // GeoTIFFs with a GeoKey directory and a tie point (1,600), on a
+    // generator of their own so the kinds above keep their draws: mutated
+    // keys, model types, units, scales and latitudes.
+    let mut geo_rng = Rng(0x6E0_7EFF_5EED_0001);
+    let geo_seed = geotiff_seed(&d);
+    let p = d.join("case-geo.tif");
+    for _ in 0..1600 {
+        std::fs::write(&p, mutate(&mut geo_rng, &geo_seed)).unwrap();
+        record("geographic tif", load_once(&p));
         cases += 1;
     }
     let secs = start.elapsed().as_secs_f64();
