@@ -7,7 +7,7 @@
 #![cfg(feature = "gpu")]
 
 use std::path::Path;
-use terraclip::check::parity;
+use terraclip::check::{compare, parity};
 use terraclip::gpu::{Api, Gpu, GpuRenderer};
 use terraclip::scene::Scene;
 
@@ -147,7 +147,7 @@ fn tolerance_mode_accepts_one_step_and_rejects_more() {
     let a = flat(10);
     let mut b = flat(10);
     b.rgba[0] = 11;
-    let d = parity::Difference::of(&a, &b);
+    let d = compare::Difference::of(&a, &b);
     assert_eq!((d.colour_px_differ, d.max_channel_diff), (1, 1));
     assert_eq!((d.shifted_px, d.unmatched_px), (0, 0));
     assert!(d.passes(false) && !d.passes(true));
@@ -155,27 +155,27 @@ fn tolerance_mode_accepts_one_step_and_rejects_more() {
     // fails, unless it lies in the tie band, where a conforming rasteriser
     // may differ.
     b.rgba[4] = 13;
-    let d = parity::Difference::of(&a, &b);
+    let d = compare::Difference::of(&a, &b);
     assert_eq!((d.shifted_px, d.unmatched_px, d.outside_band_px), (0, 1, 1));
     assert!(!d.passes(false));
     let mut band = vec![false; PX];
     band[1] = true;
-    let d = parity::Difference::within(&a, &b, Some(&band));
+    let d = compare::Difference::within(&a, &b, Some(&band));
     assert_eq!((d.unmatched_px, d.outside_band_px), (1, 0));
     assert!(d.passes(false) && !d.passes(true));
     band[1] = false;
     band[2] = true;
-    assert!(!parity::Difference::within(&a, &b, Some(&band)).passes(false));
+    assert!(!compare::Difference::within(&a, &b, Some(&band)).passes(false));
     let mut c = flat(10);
-    c.depth[3] = f32::from_bits(0.5f32.to_bits() + parity::TOLERANCE_DEPTH_ULP);
-    let d = parity::Difference::of(&a, &c);
+    c.depth[3] = f32::from_bits(0.5f32.to_bits() + compare::TOLERANCE_DEPTH_ULP);
+    let d = compare::Difference::of(&a, &c);
     assert_eq!(
         (d.depth_px_differ, d.max_depth_ulp),
-        (1, parity::TOLERANCE_DEPTH_ULP)
+        (1, compare::TOLERANCE_DEPTH_ULP)
     );
     assert!(d.passes(false));
-    c.depth[3] = f32::from_bits(0.5f32.to_bits() + parity::TOLERANCE_DEPTH_ULP + 1);
-    assert_eq!(parity::Difference::of(&a, &c).unmatched_px, 1);
+    c.depth[3] = f32::from_bits(0.5f32.to_bits() + compare::TOLERANCE_DEPTH_ULP + 1);
+    assert_eq!(compare::Difference::of(&a, &c).unmatched_px, 1);
 }
 
 /// An edge one pixel over is a shift; a hole (enclosed background where the
@@ -199,25 +199,25 @@ fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
     }
     // The silhouette's rows are the tie band here.
     let band: Vec<bool> = (0..PX).map(|i| (269..=271).contains(&(i / W))).collect();
-    let d = parity::Difference::within(&cpu, &gpu, Some(&band));
+    let d = compare::Difference::within(&cpu, &gpu, Some(&band));
     assert_eq!(
         (d.shifted_px, d.unmatched_px, d.holes_px, d.max_channel_diff),
         (200, 0, 0, 190)
     );
     assert!(d.passes(false));
     // Off the band, the same shift fails.
-    assert!(!parity::Difference::of(&cpu, &gpu).passes(false));
+    assert!(!compare::Difference::of(&cpu, &gpu).passes(false));
 
     // A one-pixel hole showing the sky inside the terrain: a hole, which no
     // legal difference makes, so it fails on its own.
     let mut crack = cpu.clone();
     paint(&mut crack, 600, 400, 200, 1.0);
-    let d = parity::Difference::of(&cpu, &crack);
+    let d = compare::Difference::of(&cpu, &crack);
     assert_eq!((d.shifted_px, d.unmatched_px, d.holes_px), (0, 1, 1));
     assert!(!d.passes(false));
     // The same pixel in the other image's place (the GPU covers a hole the
     // CPU shows) counts too.
-    let d = parity::Difference::of(&crack, &cpu);
+    let d = compare::Difference::of(&crack, &cpu);
     assert_eq!(d.holes_px, 1);
     assert!(!d.passes(false));
     // A crack line across the frame.
@@ -225,7 +225,7 @@ fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
     for x in 0..W {
         paint(&mut line, x, 400, 200, 1.0);
     }
-    let d = parity::Difference::of(&cpu, &line);
+    let d = compare::Difference::of(&cpu, &line);
     assert_eq!(d.holes_px, 0, "a line across the frame joins the border");
     assert!(d.unmatched_px >= W - 2 && !d.passes(false), "{d:?}");
 
@@ -236,14 +236,14 @@ fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
         paint(&mut wired, 700, y, 255, 0.5);
         paint(&mut wired, 720, y, 255, 0.5);
     }
-    let d = parity::Difference::of(&wired, &cpu);
+    let d = compare::Difference::of(&wired, &cpu);
     assert_eq!((d.unmatched_px, d.holes_px), (2 * H, 0));
     assert!(!d.passes(false));
 
     // The same colour at another depth (a fogged surface behind another).
     let mut deeper = cpu.clone();
     paint(&mut deeper, 30, 470, 10, 0.75);
-    assert_eq!(parity::Difference::of(&cpu, &deeper).unmatched_px, 1);
+    assert_eq!(compare::Difference::of(&cpu, &deeper).unmatched_px, 1);
 
     // A wall whose depth steps 0.0004 per pixel: a GPU depth 1/32 of a step
     // off is the same pixel; half a step off everywhere is a shift over
@@ -257,10 +257,10 @@ fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
         }
         img
     };
-    let d = parity::Difference::of(&wall(0.0), &wall(1.0 / 32.0));
-    assert!(d.max_depth_ulp > parity::TOLERANCE_DEPTH_ULP);
+    let d = compare::Difference::of(&wall(0.0), &wall(1.0 / 32.0));
+    assert!(d.max_depth_ulp > compare::TOLERANCE_DEPTH_ULP);
     assert_eq!((d.shifted_px, d.unmatched_px), (0, 0));
-    let d = parity::Difference::of(&wall(0.0), &wall(0.5));
+    let d = compare::Difference::of(&wall(0.0), &wall(0.5));
     assert!(d.shifted_px > PX / 2 && !d.passes(false), "{d:?}");
 
     // A ramp moved by a pixel everywhere: every pixel but those of the two
@@ -274,7 +274,7 @@ fn tolerance_mode_allows_edges_one_pixel_over_and_nothing_else() {
         }
         img
     };
-    let d = parity::Difference::of(&ramp(0), &ramp(1));
+    let d = compare::Difference::of(&ramp(0), &ramp(1));
     // Unmatched only at the image's side columns and the ramp's 8 seams.
     assert!(d.unmatched_px <= 2 * 9 * H, "{d:?}");
     assert!(d.shifted_px > PX / 2 && !d.passes(false), "{d:?}");
@@ -342,7 +342,7 @@ fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
 /// - the whole frame one pixel over.
 ///
 /// The last three are made for every visible level (1–4 in this view),
-/// and each fails on the tie band ([`parity::tie_band`]), the one limit
+/// and each fails on the tie band ([`compare::tie_band`]), the one limit
 /// tolerance mode puts on shifted and unmatched pixels. A conforming difference (vertices moved a fraction of
 /// the sub-pixel precision) passes.
 #[test]
@@ -360,14 +360,14 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
     let want = render(&frame);
     let px = (want.width * want.height) as usize;
     // The tie band of the reference frame, as `check-gpu` computes it.
-    let band = parity::tie_band(
+    let band = compare::tie_band(
         &terraclip::render::raster(&frame, terraclip::raster::Path::Scalar),
         frame.effects.wireframe,
     );
     let in_band = band.iter().filter(|&&b| b).count();
     println!("tie band: {in_band} of {px} pixels");
     let check = |what: &str, got: &terraclip::render::Image| {
-        let d = parity::Difference::within(&want, got, Some(&band));
+        let d = compare::Difference::within(&want, got, Some(&band));
         println!(
             "{what}: {} shifted, {} unmatched, {} outside the tie band, of {px}",
             d.shifted_px, d.unmatched_px, d.outside_band_px
@@ -391,7 +391,7 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
             *c *= 1.0 + 1.0 / 16_384.0;
         }
     }
-    let d = parity::Difference::within(&want, &render(&nudged), Some(&band));
+    let d = compare::Difference::within(&want, &render(&nudged), Some(&band));
     println!("vertices nudged: {d:?}");
     assert!(d.passes(false), "a conforming difference fails: {d:?}");
     // The whole frame one pixel to the right: a shift everywhere, which no

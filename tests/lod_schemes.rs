@@ -156,7 +156,7 @@ fn every_scheme_renders_the_default_view_near_brute_force() {
         ("annulus", 22.29),
     ] {
         let (img, st) = terraclip::render::render(&s.with_lod(lod).unwrap(), &opts).unwrap();
-        let e = terraclip::studies::metrics::image_error(&img, &bf, &cam);
+        let e = terraclip::check::compare::image_error(&img, &bf, &cam);
         println!("{lod}: {} triangles, rmse {:.2}", st.triangles, e.rmse);
         assert!(st.triangles > 0, "{lod} drew nothing");
         assert_eq!(st.non_finite_vertices, 0);

@@ -5,6 +5,7 @@
 //! references, each through a temporary file and a rename. On a mismatch,
 //! the actual image and a difference image can be written for inspection.
 
+use crate::check::compare::{channels, difference_image};
 use crate::error::{write_atomic, Error, Result};
 use crate::render::{render, Image, RenderOptions};
 use crate::scene::Scene;
@@ -47,26 +48,6 @@ pub fn load_png(path: &Path) -> Result<(u32, u32, Vec<u8>)> {
     let img = image::open(path).map_err(|e| Error::file(path, format!("unreadable PNG: {e}")))?;
     let rgba = img.to_rgba8();
     Ok((rgba.width(), rgba.height(), rgba.into_raw()))
-}
-
-/// Pixels that differ, and a difference image (red where they do).
-pub fn diff(a: &Image, expected: &[u8]) -> (usize, Image) {
-    let mut out = a.clone();
-    let mut n = 0;
-    for (i, (p, q)) in a.rgba.chunks(4).zip(expected.chunks(4)).enumerate() {
-        let differs = p != q;
-        n += usize::from(differs);
-        let px = &mut out.rgba[i * 4..i * 4 + 4];
-        if differs {
-            px.copy_from_slice(&[255, 0, 0, 255]);
-        } else {
-            // Dim the matching pixels so the differences stand out.
-            for c in &mut px[..3] {
-                *c /= 3;
-            }
-        }
-    }
-    (n, out)
 }
 
 /// FNV-1a (64-bit) over the buffer's f32 bit patterns, little-endian, then
@@ -116,11 +97,12 @@ pub fn check_one(
         if (w, h) != (img.width, img.height) {
             total
         } else {
-            let (n, d) = diff(&img, &data);
+            let n = channels(&img.rgba, &data, 4).px_differ;
             if n > 0 {
                 if let Some(dir) = diff_dir {
                     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
                     write_atomic(&dir.join(format!("{name}-actual.png")), &img.png()?)?;
+                    let d = difference_image(&img, &data);
                     write_atomic(&dir.join(format!("{name}-diff.png")), &d.png()?)?;
                 }
             }

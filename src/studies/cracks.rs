@@ -191,7 +191,7 @@ pub enum Candidate {
 }
 
 /// 16 ULP of depth just below 1.0 (2^-20): the f32 error of the depth
-/// stage (`check::parity::TOLERANCE_DEPTH_ULP` derives it).
+/// stage (`check::compare::TOLERANCE_DEPTH_ULP` derives it).
 pub const FAR_DEPTH_BAND: f64 = 1.0 / 1_048_576.0;
 
 /// Where the terrain is: the map's world rectangle, the top of its

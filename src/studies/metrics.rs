@@ -1,55 +1,10 @@
-//! Image metrics against a reference render of the same view: colour RMSE
-//! and largest channel difference (8-bit, as ATLOD measured), depth error in
-//! metres, crack pixels, popping along a path, and box downsampling for
-//! supersampled renders.
+//! The studies' measures built on [`crate::check::compare`]: crack pixels,
+//! popping along a path, and box downsampling for supersampled references.
+//! The error of one image against another is
+//! [`compare::image_error`](crate::check::compare::image_error).
 
+use crate::check::compare::enclosed;
 use crate::render::Image;
-use crate::scene::camera::Camera;
-use serde::Serialize;
-
-/// Error of an image against a reference of the same view.
-#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
-pub struct ImageError {
-    /// Root mean square of the RGB channel differences (0–255 units).
-    pub rmse: f64,
-    /// Largest RGB channel difference.
-    pub max_abs: u8,
-    /// Mean |distance difference| (metres) over pixels both images cover.
-    pub depth_m: f64,
-}
-
-/// Distance along the view axis of a Depth32Float value (wgpu's 0..1
-/// range with the camera's near and far).
-pub fn linear_depth(d: f32, cam: &Camera) -> f64 {
-    let (n, f) = (cam.near, cam.far);
-    f * n / (f - d as f64 * (f - n))
-}
-
-pub fn image_error(img: &Image, reference: &Image, cam: &Camera) -> ImageError {
-    assert_eq!(img.rgba.len(), reference.rgba.len(), "same image size");
-    let mut sum = 0.0f64;
-    let mut max_abs = 0u8;
-    for (a, b) in img.rgba.chunks(4).zip(reference.rgba.chunks(4)) {
-        for k in 0..3 {
-            let d = a[k].abs_diff(b[k]);
-            max_abs = max_abs.max(d);
-            sum += (d as f64) * (d as f64);
-        }
-    }
-    let n = (img.rgba.len() / 4 * 3).max(1) as f64;
-    let (mut dsum, mut dn) = (0.0, 0usize);
-    for (&a, &b) in img.depth.iter().zip(&reference.depth) {
-        if a < 1.0 && b < 1.0 {
-            dsum += (linear_depth(a, cam) - linear_depth(b, cam)).abs();
-            dn += 1;
-        }
-    }
-    ImageError {
-        rmse: (sum / n).sqrt(),
-        max_abs,
-        depth_m: if dn > 0 { dsum / dn as f64 } else { 0.0 },
-    }
-}
 
 /// Popping between two consecutive frames: the RMS (0–255 units) of the
 /// part of the LOD image's change that the reference's change does not
@@ -92,43 +47,6 @@ pub fn crack_candidates(lod: &Image, brute: &Image, background: [u8; 3]) -> Vec<
     (0..w * h)
         .filter(|&i| inside[i] && covered[i])
         .collect::<Vec<_>>()
-}
-
-/// The pixels of `bg` (a `w`×`h` mask, row-major) that no path of `bg`
-/// pixels through their 4-neighbours joins to the image border: background
-/// enclosed by surface, as a hole shows it, where sky past a silhouette
-/// reaches the border.
-pub fn enclosed(bg: &[bool], w: usize, h: usize) -> Vec<bool> {
-    let mut outside = vec![false; w * h];
-    let mut stack: Vec<usize> = (0..w * h)
-        .filter(|&i| bg[i] && (i % w == 0 || i % w == w - 1 || i / w == 0 || i / w == h - 1))
-        .collect();
-    for &i in &stack {
-        outside[i] = true;
-    }
-    while let Some(i) = stack.pop() {
-        let (x, y) = (i % w, i / w);
-        let mut next = Vec::with_capacity(4);
-        if x > 0 {
-            next.push(i - 1);
-        }
-        if x + 1 < w {
-            next.push(i + 1);
-        }
-        if y > 0 {
-            next.push(i - w);
-        }
-        if y + 1 < h {
-            next.push(i + w);
-        }
-        for j in next {
-            if bg[j] && !outside[j] {
-                outside[j] = true;
-                stack.push(j);
-            }
-        }
-    }
-    (0..w * h).map(|i| bg[i] && !outside[i]).collect()
 }
 
 /// Box-filters an image rendered at `s`× the width and height down to
@@ -184,29 +102,6 @@ mod tests {
             rgba,
             depth: vec![0.5; (w * h) as usize],
         }
-    }
-
-    #[test]
-    fn rmse_and_max_of_a_known_difference() {
-        let a = img(4, 4, |_, _| [10, 10, 10]);
-        let b = img(
-            4,
-            4,
-            |x, _| if x == 0 { [14, 10, 10] } else { [10, 10, 10] },
-        );
-        let cam = Camera {
-            eye: glam::DVec3::ZERO,
-            target: glam::DVec3::X,
-            fov_y_deg: 60.0,
-            near: 1.0,
-            far: 100.0,
-            aspect: 1.0,
-        };
-        let e = image_error(&a, &b, &cam);
-        // 4 of 48 channel values differ by 4: sqrt(4 * 16 / 48).
-        assert!((e.rmse - (64.0f64 / 48.0).sqrt()).abs() < 1e-12);
-        assert_eq!(e.max_abs, 4);
-        assert_eq!(e.depth_m, 0.0);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! supersampling, is measured the same way against a 64× render of the
 //! same mesh.
 
+use crate::check::compare::{self, ImageError};
 use crate::clipmap::Layout;
 use crate::error::Result;
 use crate::frame::stats::Passes;
@@ -14,7 +15,7 @@ use crate::pyramid::Filter;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
 use crate::scene::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
-use crate::studies::metrics::{self, ImageError};
+use crate::studies::metrics;
 use crate::studies::views::{self, NamedView};
 use serde::Serialize;
 
@@ -323,7 +324,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
                 Some(r) => shot(r, &v.camera, 64)?.0,
                 None => bf_views[i].clone(),
             };
-            errs.push((metrics::image_error(&img, &reference, &v.camera), v.kind));
+            errs.push((compare::image_error(&img, &reference, &v.camera), v.kind));
             ms += stats.ms_total;
             parts[0] += stats.pass_ms(&["lod"]);
             parts[1] += stats.pass_ms(&["mesh"]);
