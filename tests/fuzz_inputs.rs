@@ -203,6 +203,8 @@ fn geotiff_seed(d: &Path) -> Vec<u8> {
 const ASC: &str = "ncols 4\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\nNODATA_value -9999\n1 2 3 4\n5 -9999 7 8\n9 10 11 12\n";
 const SIDECAR: &str = r#"{"width": 4, "height": 3, "cell_size_m": {"x": 10.0, "y": 20.0}, "nodata": -32768.0, "raw_offset_m": 100.0, "raw_scale_m_per_unit": 2.0}"#;
 const SCENE: &str = r#"effects = ["morph", "lambert", "fog"]
+camera = { position = [1300.0, -2300.0, 700.0], look_at = [1500.0, -2500.0, 100.0], near = 1.0, far = 20000.0 }
+image = { width = 32, height = 24 }
 [terrain]
 procedural = { seed = 5, width = 65, height = 65, amplitude = 500.0, wavelength = 64.0 }
 cell_size = 10.0
@@ -214,14 +216,6 @@ filter = "sinc-blackman"
 scheme = "clipmap"
 n = 15
 layout = "strips"
-[camera]
-position = [1300.0, -2300.0, 700.0]
-look_at = [1500.0, -2500.0, 100.0]
-near = 1.0
-far = 20000.0
-[image]
-width = 32
-height = 24
 "#;
 
 /// Loads `path`; Ok(true) loaded (and the map is sound), Ok(false) clean
@@ -302,7 +296,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("seed 4 (tif)", 544),
     ("asc", 147),
     ("raw f32 + sidecar", 334),
-    ("scene", 105),
+    ("scene", 106),
     ("geographic tif", 617),
 ];
 
