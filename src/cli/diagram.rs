@@ -3,6 +3,7 @@
 use super::load_scene;
 use serde_json::json;
 use std::path::PathBuf;
+use terraclip::studies::diagram;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -10,7 +11,7 @@ pub struct Args {
     pub scene: Option<PathBuf>,
     #[arg(short, long, default_value = "diagram.png")]
     pub out: PathBuf,
-    /// Image side in pixels.
+    /// The map's side in pixels; the key adds a panel to its right.
     #[arg(long, default_value_t = 800)]
     pub size: u32,
     #[arg(long)]
@@ -22,9 +23,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::bail!("--size must be within 1..=16384, got {}", a.size);
     }
     let s = load_scene(&a.scene)?;
-    let (cm, world) = terraclip::studies::diagram::clipmap(&s)?;
-    let cam = s.camera();
-    let png = terraclip::studies::diagram::draw(&cm, Some((&cam, &world)), a.size)?;
+    let session = diagram::session(&s)?;
+    let cm = session
+        .lod
+        .clipmap()
+        .ok_or_else(|| anyhow::anyhow!("the scene's LOD scheme has no clipmap"))?;
+    let png = diagram::draw(cm, &session.world, Some(&s.camera()), a.size)?;
     terraclip::error::write_atomic(&a.out, &png)?;
     let active = cm.levels().iter().filter(|l| l.is_active()).count();
     if a.json {

@@ -131,7 +131,23 @@ pub struct View<'a> {
     pub viewport: [u32; 2],
 }
 
-impl View<'_> {
+impl<'a> View<'a> {
+    /// The view of `camera` (whose frustum is `frustum`) over `world` in an
+    /// image of `viewport` pixels.
+    pub fn new(
+        camera: &'a Camera,
+        frustum: &'a Frustum,
+        world: &'a WorldMap,
+        viewport: [u32; 2],
+    ) -> Self {
+        View {
+            camera,
+            frustum,
+            world,
+            viewport,
+        }
+    }
+
     /// Pixels per unit of (size ÷ distance) at the image centre: a world
     /// length e at distance d covers about `e · k / d` pixels.
     pub fn pixel_scale(&self) -> f64 {

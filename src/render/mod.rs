@@ -246,6 +246,16 @@ impl Session {
         })
     }
 
+    /// Moves the LOD scheme to `camera` (timed pass "lod") without meshing
+    /// or drawing: what `diagram` shows. [`Session::frame`] does this first.
+    pub fn update(&mut self, camera: &Camera, passes: &mut Passes) -> &LodUpdate {
+        let frustum = camera.frustum();
+        let view = View::new(camera, &frustum, &self.world, self.size);
+        let lod = &mut self.lod;
+        self.last_update = passes.time("lod", || lod.update(&view));
+        &self.last_update
+    }
+
     /// The frame for `camera` (timed passes "lod", "mesh" and the frame's
     /// own), and for a clipmap the level meshes it was made from.
     pub fn frame(
@@ -253,15 +263,10 @@ impl Session {
         camera: &Camera,
         passes: &mut Passes,
     ) -> Result<(Frame, Option<ClipFrame>)> {
+        self.update(camera, passes);
         let frustum = camera.frustum();
-        let view = View {
-            camera,
-            frustum: &frustum,
-            world: &self.world,
-            viewport: self.size,
-        };
+        let view = View::new(camera, &frustum, &self.world, self.size);
         let lod = &mut self.lod;
-        self.last_update = passes.time("lod", || lod.update(&view));
         let mesh = passes.time("mesh", || lod.mesh(&view));
         let clip = lod.take_clip_frame();
         let frame = Frame::build(

@@ -4,7 +4,7 @@
 //! writer and a tiny-skia PNG both implement, so the two files always show
 //! the same thing.
 
-use super::font;
+pub use super::text::Anchor;
 use crate::error::{Error, Result};
 
 /// One named series of (x, y) points.
@@ -42,13 +42,6 @@ const COLOURS: [[u8; 3]; 8] = [
     [204, 121, 167],
     [120, 120, 120],
 ];
-
-#[derive(Clone, Copy, PartialEq, Debug)]
-pub enum Anchor {
-    Start,
-    Middle,
-    End,
-}
 
 /// What the chart needs from an output format.
 pub trait Canvas {
@@ -226,7 +219,7 @@ impl Chart {
         let mut s = SvgCanvas(String::new());
         self.draw(&mut s);
         format!(
-            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" font-family=\"sans-serif\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}</svg>\n",
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{H}\" viewBox=\"0 0 {W} {H}\" font-family=\"DejaVu Sans, sans-serif\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}</svg>\n",
             s.0
         )
     }
@@ -361,38 +354,16 @@ impl Canvas for PngCanvas {
         }
     }
     fn text(&mut self, p: (f64, f64), s: &str, size: f64, anchor: Anchor, vertical: bool) {
-        // Pixel size of one font dot: 5 dots make the cap height.
-        let k = (size / 5.0).round().max(1.0);
-        let advance = 4.0 * k;
-        let len = s.chars().count() as f64 * advance;
-        let start = match anchor {
-            Anchor::Start => 0.0,
-            Anchor::Middle => -len / 2.0,
-            Anchor::End => -len,
-        };
-        let ink = paint([40, 40, 40]);
-        for (i, ch) in s.chars().enumerate() {
-            for (row, bits) in font::glyph(ch).iter().enumerate() {
-                for col in 0..3 {
-                    if bits >> (2 - col) & 1 == 0 {
-                        continue;
-                    }
-                    let along = start + i as f64 * advance + col as f64 * k;
-                    let up = (row as f64 - 5.0) * k;
-                    let (x, y) = if vertical {
-                        (p.0 + up, p.1 - along - k)
-                    } else {
-                        (p.0 + along, p.1 + up)
-                    };
-                    if let Some(r) =
-                        tiny_skia::Rect::from_xywh(x as f32, y as f32, k as f32, k as f32)
-                    {
-                        self.0
-                            .fill_rect(r, &ink, tiny_skia::Transform::identity(), None);
-                    }
-                }
-            }
-        }
+        let at = (p.0 as f32, p.1 as f32);
+        super::text::draw(
+            &mut self.0,
+            at,
+            s,
+            size as f32,
+            anchor,
+            vertical,
+            [40, 40, 40],
+        );
     }
 }
 

@@ -1,4 +1,5 @@
-//! Reports: charts (SVG and PNG) of measured series.
+//! Reports: charts (SVG and PNG) of measured series, and the text they and
+//! the diagrams are labelled with.
 
 pub mod chart;
-mod font;
+pub mod text;
