@@ -168,22 +168,35 @@ mod tests {
     }
 
     /// The shader's `PT_*` constants are the float offsets of the
-    /// [`PassVertex`] fields it reads, and `PT` its length in floats.
+    /// [`PassVertex`] fields it reads, `PT` its length in floats, and its
+    /// `MODE_*` the draw modes [`Draw`] carries.
     #[test]
     fn passthrough_offsets_match_the_shader() {
         let m = shader();
-        let constant = |name: &str| -> u32 {
+        // The literal a module-scope constant is set to.
+        let literal = |name: &str| -> Literal {
             let (_, c) = m
                 .constants
                 .iter()
                 .find(|(_, c)| c.name.as_deref() == Some(name))
                 .unwrap_or_else(|| panic!("no constant {name} in terrain.wgsl"));
             match m.global_expressions[c.init] {
-                Expression::Literal(Literal::U32(v)) => v,
+                Expression::Literal(v) => v,
                 ref e => panic!("{name} = {e:?}"),
             }
         };
+        let constant = |name: &str| match literal(name) {
+            Literal::U32(v) => v,
+            v => panic!("{name} = {v:?}, not a u32"),
+        };
         let float = |bytes: usize| (bytes / 4) as u32;
+        for (name, mode) in [
+            ("MODE_PASSTHROUGH", MODE_PASSTHROUGH),
+            ("MODE_STRIPS", MODE_STRIPS),
+            ("MODE_FOOTPRINT", MODE_FOOTPRINT),
+        ] {
+            assert_eq!(literal(name), Literal::I32(mode), "{name}");
+        }
         assert_eq!(constant("PT"), float(size_of::<PassVertex>()));
         for (name, at) in [
             ("PT_CLIP", offset_of!(PassVertex, clip)),

@@ -36,7 +36,7 @@ struct Globals {
 };
 
 struct Draw {
-    // level, spacing g, n, mode (0 passthrough, 1 strips, 2 footprint).
+    // level, spacing g, n, mode (MODE_*).
     level: vec4<i32>,
     // window origin x, y (level texels); toroid phase x, y (origin mod n).
     origin: vec4<i32>,
@@ -69,6 +69,11 @@ override WIREFRAME: bool = false;
 @group(1) @binding(1) var<storage, read> strips: array<u32>;
 @group(1) @binding(2) var<storage, read> footprints: array<vec2<i32>>;
 @group(1) @binding(3) var<storage, read> passthrough: array<f32>;
+
+// What a draw's vertices are (D.level.w; gpu::uniforms::MODE_*).
+const MODE_PASSTHROUGH: i32 = 0;
+const MODE_STRIPS: i32 = 1;
+const MODE_FOOTPRINT: i32 = 2;
 
 // Record of a passthrough vertex (gpu::uniforms::PassVertex): float
 // offsets of the fields read here, and the record's length.
@@ -217,7 +222,7 @@ fn morph_alpha(x: i32, y: i32) -> f32 {
 fn local_coords(vid: u32) -> vec2<i32> {
     let n = D.level.z;
     var c: vec2<i32>;
-    if (D.level.w == 1) {
+    if (D.level.w == MODE_STRIPS) {
         let idx = strips[vid];
         let t = vec2<i32>(i32(idx % u32(n)), i32(idx / u32(n)));
         c = vec2<i32>(toroid(t.x - D.origin.z, n), toroid(t.y - D.origin.w, n));
@@ -310,7 +315,7 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VOut {
     let corner = vid % 3u;
     o.bary = vec3<f32>(0.0);
     o.bary[corner] = 1.0;
-    if (D.level.w == 0) {
+    if (D.level.w == MODE_PASSTHROUGH) {
         // Brute force and other CPU-made meshes: the CPU vertex stage's
         // output, passed through.
         o.pos = vec4<f32>(
