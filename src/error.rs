@@ -12,19 +12,32 @@ pub enum Error {
     /// Reading or writing a file failed at the OS level.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// What the OS said.
         #[source]
         source: std::io::Error,
     },
     /// A file was readable but its contents are not acceptable.
     #[error("{path}: {reason}")]
-    BadFile { path: PathBuf, reason: String },
+    BadFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// A parameter (scene field, CLI value) is out of range or malformed.
     #[error("{field}: {reason}")]
-    BadValue { field: String, reason: String },
+    BadValue {
+        /// The field or flag, as the user wrote it (`lod.n`, `--size`).
+        field: String,
+        /// What is wrong with the value.
+        reason: String,
+    },
 }
 
 impl Error {
+    /// An OS-level failure on `path`.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),

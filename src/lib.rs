@@ -14,6 +14,8 @@
 //! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame →
 //! raster → shade. `docs/architecture.md` describes the stages.
 
+#![warn(missing_docs)]
+
 pub mod check;
 pub mod clipmap;
 pub mod cpu;
@@ -26,7 +28,7 @@ pub mod pyramid;
 pub mod raster;
 pub mod render;
 pub mod scene;
-pub mod shade;
+pub(crate) mod shade;
 pub mod studies;
 pub mod terrain;
 

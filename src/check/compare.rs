@@ -50,8 +50,11 @@ use serde::Serialize;
 ///   already bounds where, and so how many, pixels may differ, and a
 ///   budget inside it would be policy rather than derivation.
 pub const TOLERANCE_CHANNEL: u8 = 1;
+/// Depth may differ by this many ULP and still be "same" (derived above).
 pub const TOLERANCE_DEPTH_ULP: u32 = 16;
+/// How far in pixels a vertex may move: 2^-4, the least sub-pixel precision Vulkan allows.
 pub const TOLERANCE_SUBPIXEL: f32 = 1.0 / 16.0;
+/// Holes tolerance mode allows: none (derived above).
 pub const TOLERANCE_HOLES: usize = 0;
 
 /// How far from an edge a pixel centre may lie and still be covered
@@ -98,9 +101,13 @@ pub fn tie_band(r: &crate::raster::Raster, wire: bool) -> Vec<bool> {
 /// How two images differ.
 #[derive(Clone, Copy, Debug, Default, Serialize, PartialEq)]
 pub struct Difference {
+    /// Pixels whose RGBA differ at all.
     pub colour_px_differ: usize,
+    /// Pixels whose depth bits differ at all.
     pub depth_px_differ: usize,
+    /// The largest difference of one channel, in 8-bit steps.
     pub max_channel_diff: u8,
+    /// The largest depth difference, in ULP of the f32 values.
     pub max_depth_ulp: u32,
     /// Pixels that match within tolerance only at a neighbour.
     pub shifted_px: usize,
@@ -127,12 +134,17 @@ pub struct Difference {
 /// One pixel as both back ends drew it (`a` is the reference).
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct PixelPair {
+    /// Column, from the left.
     pub x: usize,
+    /// Row, from the top.
     pub y: usize,
+    /// The reference's colour.
     pub a_rgba: [u8; 4],
+    /// The other image's colour.
     pub b_rgba: [u8; 4],
     /// NaN where the image has no depth (GL).
     pub a_depth: f32,
+    /// The other image's depth; NaN where it has none.
     pub b_depth: f32,
 }
 

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 /// One scene's outcome.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct GoldenResult {
+    /// The scene's file stem (`default` for `default.toml`).
     pub scene: String,
     /// Pixels whose RGBA differ (every pixel when the reference is missing).
     pub px_differ: usize,

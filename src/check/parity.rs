@@ -15,12 +15,15 @@ use std::time::Instant;
 /// One scene's parity result (the CLI contract's keys plus detail).
 #[derive(Clone, Debug, Serialize)]
 pub struct SceneParity {
+    /// The scene's name as `check-gpu` reports it.
     pub scene: String,
     /// Over every frame: counts summed, largest differences the largest;
     /// `unmatched_example` from the worst frame (CPU as `a`).
     #[serde(flatten)]
     pub diff: Difference,
+    /// Every frame passed in the chosen mode ([`Difference::passes`]).
     pub pass: bool,
+    /// The most triangles one GPU frame drew.
     pub triangles: usize,
     /// Frames compared (1, or the path's length).
     pub frames: usize,
@@ -30,6 +33,7 @@ pub struct SceneParity {
     /// Toroid texels the GPU rewrote over the path after its first frame,
     /// and what full uploads would have written.
     pub texels_uploaded: u64,
+    /// What uploading every level's toroid in full each frame would have written.
     pub texels_full: u64,
     /// With a lazy pyramid: the coarsest levels not yet drawn after each
     /// frame of the GPU's session (absent otherwise), so a path can show
@@ -195,17 +199,25 @@ pub fn check(
 /// `bench`: frames per second of both back ends on the same frame, warm.
 #[derive(Clone, Debug, Serialize)]
 pub struct Bench {
+    /// CPU frames per second (raster and shade), the median repeat.
     pub cpu_fps: f64,
+    /// GPU frames per second (upload, draw and readback), the median repeat.
     pub gpu_fps: f64,
     /// cpu_fps ÷ gpu_fps.
     pub ratio: f64,
+    /// The adapter's name, driver and API.
     pub adapter: String,
+    /// Image width and height in pixels.
     pub size: [u32; 2],
+    /// Triangles in the frame.
     pub triangles: usize,
+    /// Frames per repeat.
     pub frames: usize,
+    /// Repeats, alternating back ends.
     pub repeats: usize,
     /// Per repeat, ms per frame.
     pub cpu_ms: Vec<f64>,
+    /// Per repeat, GPU ms per frame.
     pub gpu_ms: Vec<f64>,
 }
 

@@ -111,7 +111,9 @@ impl ColumnCache {
 /// A level as a toroid's source: rows copied from the level, narrow
 /// rectangles from its [`ColumnCache`] where it holds them.
 pub struct LevelSource<'a> {
+    /// The pyramid level the toroid mirrors.
     pub level: &'a PyramidLevel,
+    /// Its column blocks, for east and west steps.
     pub cache: &'a ColumnCache,
 }
 

@@ -14,8 +14,11 @@ use glam::{DVec3, DVec4};
 /// Greene's classification of a box against a frustum.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Class {
+    /// Wholly outside one plane: culled.
     Outside,
+    /// Inside every plane: drawn without further tests.
     Inside,
+    /// Crosses a plane: its children are tested.
     Intersecting,
 }
 

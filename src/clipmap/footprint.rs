@@ -104,35 +104,49 @@ pub fn strip_to_triangles(strip: &[u32]) -> Vec<[u32; 3]> {
 /// Which static shape an instance draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ShapeId {
+    /// An m × m block, twelve per ring.
     Block,
+    /// The fix-up 3 vertices wide and m tall, in the middle of a ring's top and bottom.
     FixupVertical,
+    /// The fix-up m vertices wide and 3 tall, in the middle of a ring's left and right.
     FixupHorizontal,
     /// Trim variant: bit 0 set = trim column on the high-x side, bit 1 set =
     /// trim row on the high-y side.
     Trim(u8),
+    /// The finest level's centre, which has no finer level inside it.
     Centre,
 }
 
 /// One placed footprint: shape plus offset in level texels (world).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
+    /// The shape drawn.
     pub shape: ShapeId,
+    /// Where its first vertex goes, in level texels.
     pub offset: [i64; 2],
 }
 
 /// The static GPU Gems 2 footprints for one grid size n, built once.
 #[derive(Clone, Debug)]
 pub struct Footprints {
+    /// Grid size.
     pub n: i64,
+    /// Block size m = (n + 1) / 4.
     pub m: i64,
+    /// The m × m block.
     pub block: Shape,
+    /// The vertical fix-up.
     pub fixup_vertical: Shape,
+    /// The horizontal fix-up.
     pub fixup_horizontal: Shape,
+    /// The four L-shaped trims, by [`ShapeId::Trim`] variant.
     pub trims: [Shape; 4],
+    /// The finest level's centre.
     pub centre: Shape,
 }
 
 impl Footprints {
+    /// The footprints for grid size `n`.
     pub fn new(n: i64) -> Self {
         let m = block_size(n) as i32;
         let e = 2 * m; // interior width in cells: [m-1, 3m-1]
@@ -157,6 +171,7 @@ impl Footprints {
         }
     }
 
+    /// The shape `id` names.
     pub fn shape(&self, id: ShapeId) -> &Shape {
         match id {
             ShapeId::Block => &self.block,

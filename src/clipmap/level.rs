@@ -21,6 +21,8 @@ pub struct ClipLevel {
 }
 
 impl ClipLevel {
+    /// Level `level` with an empty `n` × `n` toroid in `regions`; morphing off until the
+    /// clipmap sets it up.
     pub fn new(level: usize, n: usize, regions: LevelRegions) -> Self {
         ClipLevel {
             level,
@@ -41,6 +43,7 @@ impl ClipLevel {
     pub fn spacing(&self) -> i64 {
         1 << self.level
     }
+    /// Whether the level has an active region (is drawn) this frame.
     pub fn is_active(&self) -> bool {
         self.regions.active.is_some()
     }

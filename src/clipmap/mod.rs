@@ -4,9 +4,9 @@
 
 pub mod columns;
 pub mod cull;
-pub mod footprint;
-pub mod level;
-pub mod morph;
+pub(crate) mod footprint;
+pub(crate) mod level;
+pub(crate) mod morph;
 pub mod region;
 pub mod toroid;
 
@@ -14,8 +14,9 @@ use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
 use crate::scene::camera::Frustum;
 use crate::terrain::world::WorldMap;
-use footprint::{Footprints, Instance};
-use level::ClipLevel;
+pub use footprint::{Footprints, Instance, ShapeId};
+pub use level::ClipLevel;
+pub use morph::MorphParams;
 use rayon::prelude::*;
 use region::{Rect, RegionParams};
 use serde::Serialize;
@@ -42,6 +43,7 @@ pub struct ClipmapConfig {
     pub n: i64,
     /// Level count; `None` = the most the map allows.
     pub levels: Option<usize>,
+    /// Strips over the toroid, or static footprints (LH04 / GPU Gems 2 ch. 2).
     pub layout: Layout,
     /// Transition width w in level texels; `None` = n/10 (capped at m − 3).
     pub transition: Option<f32>,
@@ -84,8 +86,11 @@ impl Default for ClipmapConfig {
 /// What one update did, per level (finest first).
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct UpdateStats {
+    /// Texels rewritten in each level.
     pub texels_per_level: Vec<u64>,
+    /// The toroid rectangles rewritten in each level (what a GPU back end uploads).
     pub rects_per_level: Vec<TexRects>,
+    /// Texels rewritten over all levels.
     pub texels_total: u64,
     /// Levels left stale (and inactive) because the budget ran out.
     pub levels_deferred: usize,
@@ -102,13 +107,17 @@ pub struct UpdateStats {
 /// A mesh vertex after the vertex stage: base-grid position and heights.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshVertex {
-    /// Base-grid column and row.
+    /// Base-grid column.
     pub x: i64,
+    /// Base-grid row.
     pub y: i64,
     /// Own height, coarser-level height, morph weight and morphed height.
     pub z: f32,
+    /// The coarser level's height here: what the vertex morphs towards.
     pub zc: f32,
+    /// Morph weight: 0 inside the transition band, rising to 1 at the level's outer edge.
     pub alpha: f32,
+    /// The height drawn: z + alpha · (zc − z).
     pub zm: f32,
 }
 
@@ -116,9 +125,13 @@ pub struct MeshVertex {
 #[derive(Clone, Debug, PartialEq)]
 pub enum LevelGeometry {
     /// Strip indices into the level's toroid (vertex i = toroid texel i).
-    Strips { strip: Vec<u32> },
+    Strips {
+        /// One triangle strip; rows are joined by degenerate triangles.
+        strip: Vec<u32>,
+    },
     /// Placed static footprints.
     Footprints {
+        /// The footprints placed for the frame (culled ones left out).
         instances: Vec<Instance>,
         /// In-map triangles (toroid indices) of blocks that cross the
         /// usable map's edge: drawn like strips, so nothing is drawn
@@ -127,9 +140,12 @@ pub enum LevelGeometry {
     },
 }
 
+/// One level's share of a frame's clipmap mesh.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LevelMesh {
+    /// The level, 0 the finest.
     pub level: usize,
+    /// Its triangles, in the layout's form.
     pub geometry: LevelGeometry,
 }
 
@@ -216,21 +232,27 @@ impl Clipmap {
         })
     }
 
+    /// The configuration it was built with.
     pub fn config(&self) -> &ClipmapConfig {
         &self.cfg
     }
+    /// The grid size n of every level.
     pub fn n(&self) -> i64 {
         self.n
     }
+    /// The levels, finest first.
     pub fn levels(&self) -> &[ClipLevel] {
         &self.levels
     }
+    /// The pyramid the levels are filled from.
     pub fn pyramid(&self) -> &Pyramid {
         &self.pyramid
     }
+    /// The footprint meshes shared by every level (footprints layout).
     pub fn footprints(&self) -> &Footprints {
         &self.footprints
     }
+    /// The region parameters (m, margins) derived from n.
     pub fn region_params(&self) -> &RegionParams {
         &self.params
     }

@@ -23,6 +23,8 @@ pub struct MorphParams {
     /// level texels (x0, y0, x1, y1), and which of its sides face a coarser
     /// level (map edges do not). Vertices there get α = 1 exactly.
     pub boundary: [i32; 4],
+    /// Per side of `boundary`: whether a coarser level lies beyond it, so its vertices
+    /// are stitched (snapped onto the coarser grid).
     pub stitched: [bool; 4],
 }
 

@@ -10,13 +10,18 @@ use serde::Serialize;
 /// A closed rectangle of lattice vertices `[x0, x1] × [y0, y1]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 pub struct Rect {
+    /// Least column.
     pub x0: i64,
+    /// Least row.
     pub y0: i64,
+    /// Greatest column (inclusive).
     pub x1: i64,
+    /// Greatest row (inclusive).
     pub y1: i64,
 }
 
 impl Rect {
+    /// The rectangle `[x0, x1] × [y0, y1]`.
     pub const fn new(x0: i64, y0: i64, x1: i64, y1: i64) -> Self {
         Rect { x0, y0, x1, y1 }
     }
@@ -24,9 +29,11 @@ impl Rect {
     pub fn is_degenerate(&self) -> bool {
         self.x1 <= self.x0 || self.y1 <= self.y0
     }
+    /// Cells across: x1 − x0.
     pub fn width(&self) -> i64 {
         self.x1 - self.x0
     }
+    /// Cells down: y1 − y0.
     pub fn height(&self) -> i64 {
         self.y1 - self.y0
     }
@@ -40,9 +47,11 @@ impl Rect {
         );
         (!r.is_degenerate()).then_some(r)
     }
+    /// Whether `o` lies wholly inside (edges may touch).
     pub fn contains(&self, o: &Rect) -> bool {
         o.x0 >= self.x0 && o.y0 >= self.y0 && o.x1 <= self.x1 && o.y1 <= self.y1
     }
+    /// Whether vertex (x, y) lies inside or on the edge.
     pub fn contains_point(&self, x: i64, y: i64) -> bool {
         x >= self.x0 && x <= self.x1 && y >= self.y0 && y <= self.y1
     }
@@ -85,6 +94,7 @@ impl Rect {
         .filter(|r| !r.is_degenerate())
         .collect()
     }
+    /// Cells enclosed: width × height.
     pub fn cell_area(&self) -> i64 {
         self.width() * self.height()
     }

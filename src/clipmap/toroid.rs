@@ -12,16 +12,22 @@ pub const PARALLEL_TEXELS: usize = 16 * 1024;
 /// A half-open rectangle `[x0, x1) × [y0, y1)` in toroid (texel) space.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct TexRect {
+    /// First column.
     pub x0: usize,
+    /// First row.
     pub y0: usize,
+    /// Column past the last.
     pub x1: usize,
+    /// Row past the last.
     pub y1: usize,
 }
 
 impl TexRect {
+    /// Texels covered.
     pub fn area(&self) -> usize {
         (self.x1 - self.x0) * (self.y1 - self.y0)
     }
+    /// Whether the two share a texel.
     pub fn overlaps(&self, o: &TexRect) -> bool {
         self.x0 < o.x1 && o.x0 < self.x1 && self.y0 < o.y1 && o.y0 < self.y1
     }
@@ -159,6 +165,7 @@ pub fn update_rects(old: Option<[i64; 2]>, new: [i64; 2], s: usize) -> TexRects 
 }
 
 impl<T: Copy + Default + Send + Sync> Toroid<T> {
+    /// An empty toroid of `size` × `size` texels; the first move fills it.
     pub fn new(size: usize) -> Self {
         Toroid {
             size,
@@ -166,6 +173,7 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
             data: vec![T::default(); size * size],
         }
     }
+    /// Texels per side.
     pub fn size(&self) -> usize {
         self.size
     }
@@ -193,6 +201,7 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
         );
         self.data[self.index(x, y)]
     }
+    /// Whether world cell (x, y) is inside the window (false before the first fill).
     pub fn in_window(&self, x: i64, y: i64) -> bool {
         self.origin.is_some_and(|o| {
             let s = self.size as i64;
@@ -298,10 +307,15 @@ pub const NARROW: usize = 3;
 /// `rows` runs of `width` texels, the first at `data[at..]`, each `stride`
 /// after the last (the toroid's rows).
 pub struct Narrow<'a, T> {
+    /// The toroid's texels.
     pub data: &'a mut [T],
+    /// Index of the rectangle's first texel.
     pub at: usize,
+    /// Texels from one row's start to the next's.
     pub stride: usize,
+    /// Texels per row (at most [`NARROW`]).
     pub width: usize,
+    /// Rows.
     pub rows: usize,
 }
 

@@ -19,22 +19,34 @@ use rayon::prelude::*;
 use stats::Passes;
 use vertex::VertexUniforms;
 
+/// Everything a back end needs to draw one image: the mesh after the vertex stage,
+/// its varyings and the shading inputs. The CPU rasteriser and the wgpu back end draw
+/// the same `Frame`, which is what makes their images comparable pixel for pixel.
 #[derive(Clone, Debug)]
 pub struct Frame {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Clear colour, linear RGB in 0..1.
     pub background: [f32; 3],
     /// Name of the LOD scheme that made the mesh.
     pub lod: String,
+    /// The vertex stage's constants (floating origin, view-projection).
     pub uniforms: VertexUniforms,
+    /// The LOD scheme's mesh for this view.
     pub mesh: LodMesh,
+    /// The effects the scene lists; nothing else is computed.
     pub effects: Effects,
+    /// The scene's shading constants.
     pub params: ShadeParams,
+    /// Which varyings each vertex carries, and where (the effects decide).
     pub layout: Layout,
     /// Camera-relative position per vertex (the vertex stage's output).
     pub positions: Vec<[f32; 3]>,
     /// `layout.len()` varyings per vertex.
     pub attrs: Vec<f32>,
+    /// Per-frame shading resources the effects need (normal map, lightmap).
     pub resources: Resources,
     /// Height-ramp low end and span (metres) of the albedo.
     pub height_ramp: (f32, f32),
@@ -42,15 +54,25 @@ pub struct Frame {
 
 /// What a frame is made from.
 pub struct FrameInput<'a> {
+    /// The pyramid the mesh samples.
     pub pyramid: &'a Pyramid,
+    /// The pyramid's filter.
     pub filter: Filter,
+    /// Grid-to-world placement.
     pub world: &'a WorldMap,
+    /// The view.
     pub camera: &'a Camera,
+    /// The LOD scheme's mesh.
     pub mesh: LodMesh,
+    /// The scheme's name, for statistics.
     pub lod: &'a str,
+    /// Image width and height in pixels.
     pub size: [u32; 2],
+    /// Clear colour, linear RGB.
     pub background: [f32; 3],
+    /// The effects to compute.
     pub effects: Effects,
+    /// Shading constants.
     pub params: &'a ShadeParams,
 }
 
@@ -216,6 +238,7 @@ impl Frame {
         })
     }
 
+    /// Triangles in the mesh.
     pub fn triangle_count(&self) -> usize {
         self.mesh.triangle_count()
     }

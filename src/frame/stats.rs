@@ -7,7 +7,9 @@ use std::time::Instant;
 /// One pass and its wall time.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Pass {
+    /// The pass, as `--json` names it (`terrain`, `lod`, `raster`, …).
     pub name: String,
+    /// Wall time in milliseconds.
     pub ms: f64,
 }
 
@@ -30,9 +32,11 @@ impl Passes {
     pub fn ms(&self, names: &[&str]) -> f64 {
         pass_ms(&self.0, names)
     }
+    /// Whether a pass named `name` ran: how the statistics prove an unlisted effect cost nothing.
     pub fn ran(&self, name: &str) -> bool {
         self.0.iter().any(|p| p.name == name)
     }
+    /// Wall time of every pass (ms).
     pub fn total_ms(&self) -> f64 {
         self.0.iter().map(|p| p.ms).sum()
     }

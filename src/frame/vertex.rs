@@ -17,7 +17,9 @@ use glam::DVec3;
 pub struct VertexUniforms {
     /// Floating origin: base-grid vertex nearest the eye.
     pub origin: [i64; 2],
+    /// Metres per base-grid cell in x and y.
     pub cell: [f32; 2],
+    /// Metres per height unit.
     pub vertical_scale: f32,
     /// Camera-relative view-projection, f32 columns.
     pub view_proj: [[f32; 4]; 4],
@@ -26,6 +28,8 @@ pub struct VertexUniforms {
 }
 
 impl VertexUniforms {
+    /// The constants for `cam` over `world`: the origin is the grid vertex nearest the eye,
+    /// so camera-relative f32 positions stay exact far from the world origin.
     pub fn new(cam: &Camera, world: &WorldMap) -> Self {
         let g = world.to_grid(cam.eye);
         let origin = [g[0].round() as i64, g[1].round() as i64];

@@ -16,9 +16,13 @@ crate::scene::names::named! {
 
 /// An open device.
 pub struct Gpu {
+    /// The wgpu device.
     pub device: wgpu::Device,
+    /// Its queue.
     pub queue: wgpu::Queue,
+    /// The adapter's name, driver and back end, for reports.
     pub info: wgpu::AdapterInfo,
+    /// The graphics API in use (Vulkan, GL, …).
     pub api: Api,
 }
 

@@ -13,9 +13,9 @@
 //! Meshes no clipmap made (brute force) are passed through: the CPU vertex
 //! stage's clip positions and varyings, in a storage buffer.
 
-pub mod device;
+pub(crate) mod device;
 mod textures;
-pub mod uniforms;
+pub(crate) mod uniforms;
 
 pub use device::{Api, Gpu};
 
@@ -40,8 +40,11 @@ const DRAW_STRIDE: u64 = 256;
 
 /// What a clipmap contributes to a GPU draw besides the frame.
 pub struct ClipDraw<'a> {
+    /// The clipmap whose toroids the draw samples.
     pub clipmap: &'a Clipmap,
+    /// The frame's level meshes.
     pub meshes: &'a [LevelMesh],
+    /// Grid-to-world placement.
     pub world: &'a WorldMap,
     /// The update since the last draw; `None` uploads every level in full.
     pub update: Option<&'a UpdateStats>,
@@ -60,6 +63,7 @@ type ShapeRanges = HashMap<ShapeId, (u32, u32)>;
 
 /// A device plus the pipelines and textures that persist across frames.
 pub struct GpuRenderer {
+    /// The device drawn on.
     pub gpu: Gpu,
     module: wgpu::ShaderModule,
     layouts: [wgpu::BindGroupLayout; 2],
@@ -75,6 +79,7 @@ fn i32_of(v: i64, what: &str) -> Result<i32> {
 }
 
 impl GpuRenderer {
+    /// Compiles the shader and creates the pipelines' layouts on `gpu`.
     pub fn new(gpu: Gpu) -> Self {
         let d = &gpu.device;
         let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {

@@ -14,13 +14,17 @@ use crate::pyramid::Pyramid;
 use crate::scene::LodScheme;
 use std::sync::Arc;
 
+/// The draping annulus's settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config {
     /// Ring width parameter, 2^k − 1 as for the clipmap.
     pub n: i64,
+    /// Rings, each twice the spacing of the one inside it.
     pub rings: usize,
 }
 
+/// A "draping" annulus: fixed rings of grid around the viewer, unsnapped, that
+/// sample the terrain where they fall; the baseline clipmaps improve on by snapping.
 pub struct Annulus {
     pyramid: Arc<Pyramid>,
     cfg: Config,
@@ -28,6 +32,7 @@ pub struct Annulus {
 }
 
 impl Annulus {
+    /// The scheme over `pyramid`.
     pub fn new(pyramid: Arc<Pyramid>, cfg: Config) -> Self {
         Annulus {
             pyramid,

@@ -21,12 +21,14 @@ use crate::scene::LodScheme;
 use glam::DVec3;
 use std::sync::Arc;
 
+/// CDLOD's settings (Strugar 2009).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config {
     /// Node side in cells (2^k).
     pub grid: usize,
     /// r_0 as a multiple of the finest node's diagonal (≥ 1).
     pub range: f64,
+    /// Whether vertices morph towards the coarser grid in each range's outer part.
     pub morph: bool,
 }
 
@@ -40,6 +42,8 @@ struct Area {
     level: u32,
 }
 
+/// CDLOD: a quadtree of nodes chosen by distance ranges, each drawn as one grid mesh
+/// whose vertices morph in x, y and z towards the parent's grid.
 pub struct Cdlod {
     pyramid: Arc<Pyramid>,
     cfg: Config,
@@ -51,6 +55,7 @@ pub struct Cdlod {
 }
 
 impl Cdlod {
+    /// The scheme over `pyramid`, its quadtree's bounds taken from the pyramid.
     pub fn new(pyramid: Arc<Pyramid>, cfg: Config) -> Self {
         let base = &pyramid.levels[0];
         let side = (base.width.max(base.height) - 1).max(1) as i64;

@@ -11,10 +11,14 @@ use crate::scene::LodScheme;
 /// The clipmap state a frame was made from, for a back end that draws from
 /// its own copy of the toroidal levels.
 pub struct ClipFrame {
+    /// The level meshes of the frame.
     pub meshes: Vec<LevelMesh>,
+    /// What the frame's update rewrote.
     pub update: UpdateStats,
 }
 
+/// The geometry clipmap as a LOD scheme: the nested toroidal levels, updated to the
+/// viewer each frame and meshed as strips or footprints.
 pub struct ClipmapLod {
     cm: Clipmap,
     meshes: Vec<LevelMesh>,
@@ -22,6 +26,7 @@ pub struct ClipmapLod {
 }
 
 impl ClipmapLod {
+    /// The scheme over `cm`.
     pub fn new(cm: Clipmap) -> Self {
         ClipmapLod {
             cm,

@@ -28,21 +28,35 @@ use std::sync::Arc;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Mode {
     /// Level = d / distance.
-    Linear { distance: f64 },
+    Linear {
+        /// Metres per level step.
+        distance: f64,
+    },
     /// Level 1 from `distance`, each further level at twice the distance.
-    Exponential { distance: f64 },
+    Exponential {
+        /// Metres to the first step.
+        distance: f64,
+    },
     /// The coarsest level whose error covers at most τ pixels.
-    Error { tau: f64 },
+    Error {
+        /// Pixels of screen-space error allowed.
+        tau: f64,
+    },
 }
 
+/// GeoMipMapping's settings (de Boer 2000; ATLOD's renderer).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config {
     /// Block side in cells (2^k; the block has 2^k + 1 vertices).
     pub cells: usize,
+    /// How each block's level is chosen.
     pub mode: Mode,
+    /// Whether a block's vertices morph towards the next level (no popping).
     pub morph: bool,
 }
 
+/// GeoMipMapping: square blocks, each at one pyramid level chosen per frame, with
+/// neighbours' edges stitched so levels that differ by one leave no crack.
 pub struct GeoMipMap {
     pyramid: Arc<Pyramid>,
     cfg: Config,
@@ -59,6 +73,7 @@ pub struct GeoMipMap {
 }
 
 impl GeoMipMap {
+    /// The scheme over `pyramid` with `cfg`'s blocks and level rule.
     pub fn new(pyramid: Arc<Pyramid>, cfg: Config) -> Self {
         let base = &pyramid.levels[0];
         let s = cfg.cells;

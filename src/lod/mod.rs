@@ -4,7 +4,7 @@
 //! metrics compare schemes on equal terms.
 
 pub mod annulus;
-pub mod brute_force;
+pub(crate) mod brute_force;
 pub mod cdlod;
 pub mod clipmap;
 pub mod geomipmap;
@@ -24,14 +24,19 @@ use std::sync::Arc;
 /// the coarser surface's height there and the morph weight.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LodVertex {
+    /// Base-grid column.
     pub col: i64,
+    /// Base-grid row.
     pub row: i64,
     /// Sub-texel offset added to (col, row), in base texels. Zero for
     /// schemes on the grid; the annulus (unsnapped) and CDLOD (xy morph)
     /// place vertices between grid points.
     pub offset: [f32; 2],
+    /// The vertex's own height (height units).
     pub z: f32,
+    /// The coarser surface's height at the same place: the morph target.
     pub zc: f32,
+    /// Morph weight in 0..=1: the height drawn is z + alpha · (zc − z).
     pub alpha: f32,
 }
 
@@ -53,6 +58,7 @@ impl LodVertex {
 /// Per-level constants the effects need (texture addressing).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LevelInfo {
+    /// The level, 0 the finest.
     pub level: usize,
     /// Window origin in level texels.
     pub origin: [i64; 2],
@@ -65,13 +71,16 @@ pub struct LevelInfo {
 /// Unshared triangles (three vertices each) with a level per triangle.
 #[derive(Clone, Debug, Default)]
 pub struct LodMesh {
+    /// Three vertices per triangle, unshared.
     pub vertices: Vec<LodVertex>,
+    /// The level of each triangle (for per-level resources and `level-tint`).
     pub levels: Vec<u32>,
     /// Indexed by level number; levels not drawn may be absent (`None`).
     pub level_info: Vec<Option<LevelInfo>>,
 }
 
 impl LodMesh {
+    /// Triangles in the mesh.
     pub fn triangle_count(&self) -> usize {
         self.levels.len()
     }
@@ -124,8 +133,11 @@ impl LodMesh {
 
 /// What a scheme sees of the view.
 pub struct View<'a> {
+    /// The camera.
     pub camera: &'a Camera,
+    /// Its frustum, for culling.
     pub frustum: &'a Frustum,
+    /// Grid-to-world placement.
     pub world: &'a WorldMap,
     /// Image size in pixels (screen-space error thresholds need it).
     pub viewport: [u32; 2],
@@ -169,6 +181,7 @@ pub struct LodUpdate {
 /// triangles for a view (`mesh`). The two are separate timed passes, so
 /// the trade-off report can split LOD cost into update and mesh generation.
 pub trait Lod: Send {
+    /// Which scheme this is.
     fn scheme(&self) -> LodScheme;
     /// The scheme's name.
     fn name(&self) -> &'static str {
@@ -194,11 +207,17 @@ pub trait Lod: Send {
 /// A scheme and its settings, as a scene names them.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LodConfig {
+    /// Geometry clipmaps (LH04).
     Clipmap(ClipmapConfig),
+    /// Every base-grid cell: the reference the others are measured against.
     BruteForce,
+    /// GeoMipMapping blocks.
     GeoMipMap(geomipmap::Config),
+    /// ROAM's split and merge queues.
     Roam(roam::Config),
+    /// A draping annulus of fixed rings around the viewer.
     Annulus(annulus::Config),
+    /// CDLOD's quadtree with per-vertex morphing.
     Cdlod(cdlod::Config),
 }
 

@@ -21,6 +21,7 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::sync::Arc;
 
+/// ROAM's settings (Duchaineau et al. 1997).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Config {
     /// Split while a triangle's error covers more than τ pixels.
@@ -56,6 +57,8 @@ struct Tri {
     alive: bool,
 }
 
+/// ROAM: a binary triangle tree split and merged through priority queues by each
+/// triangle's screen-space error, with forced splits keeping it crack-free.
 pub struct Roam {
     pyramid: Arc<Pyramid>,
     cfg: Config,
@@ -85,6 +88,7 @@ impl Ord for Entry {
 }
 
 impl Roam {
+    /// The scheme over `pyramid`, starting from the two root triangles.
     pub fn new(pyramid: Arc<Pyramid>, cfg: Config) -> Self {
         let base = &pyramid.levels[0];
         let patches = [

@@ -72,6 +72,7 @@ impl LazyBase {
 pub struct LazyStats {
     /// Tiles built so far, and in all, over every level.
     pub tiles_built: u64,
+    /// (with `tiles_built`) Tiles in all.
     pub tiles_total: u64,
     /// Samples built so far, every level counted.
     pub samples_built: u64,

@@ -26,10 +26,13 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case", tag = "kind", deny_unknown_fields)]
 pub enum Filter {
+    /// Every other sample: aliasing, kept as the baseline.
     Point,
+    /// The mean of each 2×2 block.
     Box,
     /// `taps` is the odd kernel length (≥ 3).
     SincBlackman {
+        /// Kernel length: odd, 3 to 63.
         taps: usize,
     },
 }
@@ -61,6 +64,7 @@ impl Filter {
         }
     }
 
+    /// Checks the settings; the message says what is wrong.
     pub fn validate(&self) -> Result<(), String> {
         match *self {
             Filter::SincBlackman { taps } if taps < 3 || taps % 2 == 0 || taps > 63 => Err(
@@ -103,11 +107,17 @@ impl Filter {
 /// One pyramid level: a vertex grid with spacing 2^l base texels.
 #[derive(Clone, Debug)]
 pub struct PyramidLevel {
+    /// Vertices across.
     pub width: usize,
+    /// Vertices down.
     pub height: usize,
+    /// Heights, row-major (height units; no-data cells hold a filled value).
     pub data: Vec<f32>,
+    /// Which vertices had no data in the source, row-major.
     pub nodata: Vec<bool>,
+    /// Least height in the level.
     pub min: f32,
+    /// Greatest height in the level.
     pub max: f32,
 }
 
@@ -215,7 +225,9 @@ fn prefetch_run(run: &[f32]) {
 /// All levels, finest first.
 #[derive(Clone, Debug)]
 pub struct Pyramid {
+    /// The filter each coarser level was made with.
     pub filter: Filter,
+    /// The levels, finest first (a lazy pyramid's coarse ones grow as tiles are built).
     pub levels: Vec<PyramidLevel>,
     /// Per level, height bounds of square tiles, for [`Pyramid::range_in`].
     ranges: Vec<RangeGrid>,

@@ -14,13 +14,14 @@
 //! order; tiles are independent and each walks its triangles in that order;
 //! so the result does not depend on the thread count or on the path.
 
-pub mod bin;
-pub mod clip;
+pub(crate) mod bin;
+pub(crate) mod clip;
 pub mod setup;
-pub mod simd;
-pub mod tile;
+pub(crate) mod simd;
+pub(crate) mod tile;
 
-use clip::{ClipVertex, MAX_VARYINGS};
+use clip::ClipVertex;
+pub use clip::MAX_VARYINGS;
 use rayon::prelude::*;
 use setup::{Edge, Plane, PlaneSetup, Viewport, WinVertex};
 
@@ -40,6 +41,7 @@ pub struct Mesh<'a> {
     /// Per varying: true = screen-linear (noperspective), false =
     /// perspective-correct.
     pub linear: &'a [bool],
+    /// Vertex indices, three per triangle.
     pub triangles: &'a [[u32; 3]],
     /// A flat value per triangle (the clipmap level, say).
     pub flat: &'a [u32],
@@ -112,17 +114,22 @@ impl Path {
 /// A set-up triangle: edges, pixel bounds, depth and 1/w planes.
 #[derive(Clone, Copy, Debug)]
 pub struct Tri {
+    /// The three edge functions, in 16.8 fixed point (rule 2), top-left rule applied.
     pub edges: [Edge; 3],
     /// Inclusive pixel bounds (x0, y0, x1, y1), inside the target.
     pub bbox: [i32; 4],
+    /// Depth as a plane over the pixel grid.
     pub z: Plane,
+    /// 1/w as a plane, for perspective-correct varyings.
     pub oow: Plane,
+    /// The triangle's flat value.
     pub flat: u32,
 }
 
 /// What the rasteriser saw.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct RasterStats {
+    /// Triangles handed to the rasteriser.
     pub input_triangles: usize,
     /// Vertices with a NaN or infinite clip coordinate (their triangles are
     /// dropped).
@@ -146,16 +153,21 @@ pub struct RasterStats {
 /// The rasteriser's output: depth, visibility and the planes to shade with.
 #[derive(Clone, Debug)]
 pub struct Raster {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     /// Depth32Float, cleared to 1.0, tested LESS.
     pub depth: Vec<f32>,
     /// Index into `tris` per pixel, or [`NONE`].
     pub prim: Vec<u32>,
+    /// The set-up triangles that `prim` indexes.
     pub tris: Vec<Tri>,
     /// `linear.len()` planes per triangle in `tris`.
     pub planes: Vec<Plane>,
+    /// Per varying, whether it is screen-linear.
     pub linear: Vec<bool>,
+    /// What the rasteriser saw.
     pub stats: RasterStats,
 }
 
@@ -243,6 +255,7 @@ impl Raster {
 /// Rasterisation settings.
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
+    /// Which rasteriser path runs (scalar, portable or AVX2 + FMA); all agree bit for bit.
     pub path: Path,
 }
 

@@ -7,22 +7,29 @@
 /// A vertex in window space: y down, depth in [0, 1], and 1/w.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WinVertex {
+    /// Column in pixels, from the left edge.
     pub x: f32,
+    /// Row in pixels, from the top edge.
     pub y: f32,
+    /// Depth in 0..=1.
     pub z: f32,
+    /// 1/w of the clip-space vertex.
     pub oow: f32,
 }
 
 /// Window size as the viewport's half extents.
 #[derive(Clone, Copy, Debug)]
 pub struct Viewport {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     half_w: f32,
     half_h: f32,
 }
 
 impl Viewport {
+    /// A `width` × `height` viewport at the origin, depth 0..1 (Vulkan's default).
     pub fn new(width: u32, height: u32) -> Self {
         Viewport {
             width,
@@ -70,12 +77,16 @@ pub fn snap(v: f32) -> i64 {
 /// A linear function of the pixel index: value = fma(dady, py, fma(dadx, px, a00)).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Plane {
+    /// Change per pixel to the right.
     pub dadx: f32,
+    /// Change per pixel down.
     pub dady: f32,
+    /// Value at pixel (0, 0).
     pub a00: f32,
 }
 
 impl Plane {
+    /// The value at pixel (px, py), with the fused operations in the order the planes were set up for.
     #[inline(always)]
     pub fn eval(&self, px: f32, py: f32) -> f32 {
         self.dady.mul_add(py, self.dadx.mul_add(px, self.a00))
@@ -127,8 +138,11 @@ impl PlaneSetup {
 /// is covered when E > 0 for all three edges (the top-left bias is in c).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Edge {
+    /// Coefficient of px (1/256-pixel units).
     pub a: i64,
+    /// Coefficient of py.
     pub b: i64,
+    /// Constant term, top-left bias included.
     pub c: i64,
 }
 
@@ -147,6 +161,7 @@ impl Edge {
             c: -(nx * p[0]) - ny * p[1] + i64::from(top_left),
         }
     }
+    /// E at pixel (px, py): positive inside.
     #[inline(always)]
     pub fn at(&self, px: i64, py: i64) -> i64 {
         self.a * px + self.b * py + self.c

@@ -32,7 +32,9 @@ crate::scene::names::named! {
 /// A rendered image with its depth buffer.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     /// RGBA8, row-major, top row first.
     pub rgba: Vec<u8>,
@@ -61,17 +63,27 @@ use image::ImageEncoder;
 /// Statistics of one render (the CLI's JSON keys).
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderStats {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// `cpu` or `gpu`.
     pub backend: &'static str,
+    /// The LOD scheme's name.
     pub lod: String,
+    /// Triangles drawn.
     pub triangles: usize,
+    /// Each timed pass in the order it ran; an effect not listed has no pass.
     pub passes: Vec<Pass>,
+    /// Wall time of every pass (ms).
     pub ms_total: f64,
+    /// Vertices the vertex stage made non-finite (the same as `non_finite.vertex`).
     pub non_finite_vertices: usize,
     /// Non-finite values seen per stage; every stability test requires 0.
     pub non_finite: NonFinite,
+    /// Clipmap levels with triangles in the frame (0 for other schemes).
     pub levels_drawn: usize,
+    /// What the rasteriser saw.
     pub raster: RasterStats,
     /// Rays traced for the lightmap (0 without `shadows`).
     pub lightmap_rays: usize,
@@ -89,6 +101,7 @@ pub struct RenderStats {
 /// A lazy pyramid after a frame.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct LazyFrame {
+    /// Tiles and samples built so far.
     #[serde(flatten)]
     pub pyramid: LazyStats,
     /// Samples built for this frame.
@@ -118,6 +131,7 @@ pub struct NonFinite {
 /// Render settings that are not part of the scene.
 #[derive(Clone, Copy, Debug)]
 pub struct RenderOptions {
+    /// The CPU rasteriser's path (scalar, portable or AVX2 + FMA; the same bits).
     pub path: Path,
 }
 
@@ -180,8 +194,11 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
 /// A scene's terrain, loaded once, and its LOD scheme, kept across frames
 /// so a camera path updates it incrementally.
 pub struct Session {
+    /// Grid-to-world placement of the terrain.
     pub world: WorldMap,
+    /// The pyramid's filter.
     pub filter: Filter,
+    /// The LOD scheme, kept across frames.
     pub lod: Box<dyn Lod>,
     /// What the last frame's LOD update changed.
     pub last_update: LodUpdate,

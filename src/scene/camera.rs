@@ -3,13 +3,19 @@
 
 use glam::{DMat4, DVec3, DVec4};
 
+/// A perspective camera in world metres (f64, so a view far from the origin keeps its
+/// precision until the vertex stage subtracts the floating origin).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Eye position.
     pub eye: DVec3,
+    /// The point looked at; z is up.
     pub target: DVec3,
     /// Vertical field of view in degrees.
     pub fov_y_deg: f64,
+    /// Near plane distance (metres).
     pub near: f64,
+    /// Far plane distance (metres).
     pub far: f64,
     /// Width ÷ height of the image.
     pub aspect: f64,
@@ -50,6 +56,7 @@ impl Camera {
             DVec4::new(0.0, 0.0, r * self.near, 0.0),
         )
     }
+    /// Projection × view: world to wgpu clip space (0 ≤ z ≤ w).
     pub fn view_projection(&self) -> DMat4 {
         self.projection() * self.view()
     }
@@ -91,11 +98,14 @@ impl Camera {
 /// Frustum as planes plus its 8 corner points.
 #[derive(Clone, Copy, Debug)]
 pub struct Frustum {
+    /// Left, right, bottom, top, near and far as (normal, d), normals inward.
     pub planes: [DVec4; 6],
+    /// The corners, near plane first.
     pub corners: [DVec3; 8],
 }
 
 impl Frustum {
+    /// Signed distance of `p` from `plane` (positive inside).
     #[inline]
     pub fn distance(plane: &DVec4, p: DVec3) -> f64 {
         plane.truncate().dot(p) + plane.w

@@ -3,7 +3,7 @@
 //! bad values are errors that name the file, line and column.
 
 pub mod camera;
-pub mod names;
+pub(crate) mod names;
 
 pub use names::{Effect, LodScheme};
 
@@ -11,7 +11,9 @@ use crate::clipmap::Layout;
 use crate::error::{Error, Result};
 use crate::lod::LodConfig;
 use crate::pyramid::Filter;
-use crate::shade::{Effects, ShadeParams};
+use crate::shade::Effects;
+/// The shading constants a scene's `[shading]` table sets.
+pub use crate::shade::ShadeParams;
 use crate::terrain::procedural::Procedural;
 use camera::Camera;
 use glam::DVec3;
@@ -27,21 +29,27 @@ pub const MAX_COORDINATE: f64 = 1e12;
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
 
+/// A cell size: one value for square cells, or `[x, y]`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(untagged)]
 pub enum CellSize {
+    /// Square cells, metres per side.
     Square(f64),
+    /// Metres across (x) and down (y).
     Xy([f64; 2]),
 }
 
+/// The scene's `[terrain]`: a heightmap file or a procedural map, and its placement.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Terrain {
     /// Heightmap file, relative to the scene file.
     pub file: Option<PathBuf>,
+    /// A seeded procedural map instead of a file.
     pub procedural: Option<Procedural>,
     /// Overrides the file's cell size (metres).
     pub cell_size: Option<CellSize>,
+    /// Metres per height unit of the map (default 1).
     #[serde(default = "one")]
     pub vertical_scale: f64,
     /// World (x, y) of the map's north-west corner (metres); cameras are
@@ -54,9 +62,11 @@ fn one() -> f64 {
     1.0
 }
 
+/// The scene's `[pyramid]`: how the coarser levels are made, and when.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PyramidSpec {
+    /// Downsampling filter (`point`, `box`, `sinc-blackman[:TAPS]`; default sinc-Blackman).
     #[serde(default, deserialize_with = "filter_from_name")]
     pub filter: Filter,
     /// Build the pyramid in tiles around the viewer as frames need them
@@ -84,17 +94,25 @@ fn filter_from_name<'de, D: serde::Deserializer<'de>>(
     Filter::parse(&s).map_err(serde::de::Error::custom)
 }
 
+/// The scene's `[lod]`: the scheme and its settings (docs/lod-schemes.md lists which
+/// scheme reads which key).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Lod {
+    /// The scheme (default `clipmap`).
     #[serde(default = "default_scheme")]
     pub scheme: LodScheme,
+    /// Clipmap grid size, 2^k − 1 in 15..=4095 (default 63).
     #[serde(default = "default_n")]
     pub n: i64,
+    /// Clipmap level count; the most the map allows if absent.
     pub levels: Option<usize>,
+    /// Clipmap mesh layout: strips (LH04, Brettell) or footprints (GPU Gems 2).
     #[serde(default)]
     pub layout: Layout,
+    /// Clipmap transition width in level texels; n/10 if absent, at most m − 3.
     pub transition: Option<f32>,
+    /// Clipmap texels one update may rewrite; levels beyond it stay stale (LH04's graceful degradation).
     pub texel_budget: Option<u64>,
     /// GeoMipMapping: block side in vertices, 2^k + 1.
     pub block: Option<usize>,
@@ -105,8 +123,9 @@ pub struct Lod {
     /// Screen-space error threshold in pixels (GeoMipMapping "error" mode,
     /// ROAM).
     pub tau: Option<f64>,
-    /// ROAM: triangle budget; CDLOD: node side in cells (2^k).
+    /// ROAM: triangle budget.
     pub max_triangles: Option<usize>,
+    /// CDLOD: node side in cells (2^k).
     pub grid: Option<usize>,
     /// CDLOD: first range as a multiple of the finest node's diagonal.
     pub range: Option<f64>,
@@ -119,6 +138,7 @@ fn default_n() -> i64 {
     63
 }
 
+/// The scene's `[camera]`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
@@ -127,12 +147,17 @@ pub struct CameraSpec {
     /// Either a point to look at, or a heading (`yaw`, degrees clockwise
     /// from north) and `pitch` (degrees above the horizon).
     pub look_at: Option<[f64; 3]>,
+    /// Heading in degrees clockwise from north (with `pitch`, instead of `look_at`).
     pub yaw: Option<f64>,
+    /// Degrees above the horizon.
     pub pitch: Option<f64>,
+    /// Vertical field of view in degrees (default 60).
     #[serde(default = "default_fov")]
     pub fov: f64,
+    /// Near plane distance in metres (default 1).
     #[serde(default = "default_near")]
     pub near: f64,
+    /// Far plane distance in metres (default 100 km).
     #[serde(default = "default_far")]
     pub far: f64,
 }
@@ -147,11 +172,15 @@ fn default_far() -> f64 {
     100_000.0
 }
 
+/// The scene's `[image]`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ImageSpec {
+    /// Width in pixels, 1..=16384.
     pub width: u32,
+    /// Height in pixels, 1..=16384.
     pub height: u32,
+    /// Clear colour, linear RGB in 0..=1.
     #[serde(default = "default_background")]
     pub background: [f32; 3],
 }
@@ -164,14 +193,21 @@ fn default_background() -> [f32; 3] {
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    /// `[terrain]`.
     pub terrain: Terrain,
+    /// `[pyramid]`.
     #[serde(default = "default_pyramid")]
     pub pyramid: PyramidSpec,
+    /// `[lod]`.
     pub lod: Lod,
+    /// `[camera]`.
     pub camera: CameraSpec,
+    /// `[image]`.
     pub image: ImageSpec,
+    /// The effects to simulate; anything not listed is not computed.
     #[serde(default)]
     pub effects: Vec<Effect>,
+    /// `[shading]`: sun, fog and material constants.
     #[serde(default)]
     pub shading: ShadeParams,
     /// Folder that relative paths are resolved against.
@@ -347,6 +383,7 @@ impl Scene {
         }
     }
 
+    /// The camera the scene describes, its aspect from the image size.
     pub fn camera(&self) -> Camera {
         Camera {
             eye: DVec3::from_array(self.camera.position),
@@ -406,12 +443,19 @@ impl Scene {
 /// Command-line replacements for scene values (`render` and friends).
 #[derive(Clone, Debug, Default)]
 pub struct Overrides {
+    /// `--heightmap`: replaces the terrain with this file.
     pub heightmap: Option<PathBuf>,
+    /// `--camera`: the eye position.
     pub camera: Option<[f64; 3]>,
+    /// `--look-at`: the point looked at.
     pub look_at: Option<[f64; 3]>,
+    /// `--fov`: vertical field of view in degrees.
     pub fov: Option<f64>,
+    /// `--size`: image width and height.
     pub size: Option<[u32; 2]>,
+    /// `--lod`: the LOD scheme.
     pub lod: Option<LodScheme>,
+    /// `--effects`: the effect list.
     pub effects: Option<Vec<Effect>>,
 }
 

@@ -87,11 +87,13 @@ pub struct ShadeParams {
     pub fog_colour: Option<[f32; 3]>,
     /// Blinn–Phong exponent 2^k is given as k squarings.
     pub specular_squarings: u32,
+    /// Weight of the specular highlight (`phong`).
     pub specular_strength: f32,
     /// Clearance (m) over which a ray fades from shadow to light.
     pub shadow_epsilon: f64,
     /// Lightmap samples per heightmap texel along each axis: 1 or 2.
     pub lightmap_scale: u32,
+    /// Line colour of `wireframe`, linear RGB.
     pub wire_colour: [f32; 3],
     /// Heights (metres, before vertical scale) the colour ramp spans; the
     /// map's own range if absent. A lazy pyramid needs it: it has not seen

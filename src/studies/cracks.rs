@@ -46,8 +46,10 @@ pub fn all() -> Vec<String> {
         .collect()
 }
 
+/// One scheme's crack survey over every view (`cracks --json` `schemes`).
 #[derive(Clone, Debug, Serialize)]
 pub struct SchemeCracks {
+    /// The scheme.
     pub lod: String,
     /// Candidates classified as holes.
     pub crack_pixels: usize,
@@ -60,7 +62,9 @@ pub struct SchemeCracks {
     pub views_with_cracks: usize,
     /// Views with at least one LOD-sky pixel.
     pub views_with_lod_sky: usize,
+    /// The view with the most hole pixels.
     pub worst_view: usize,
+    /// Its hole pixels.
     pub worst_pixels: usize,
     /// The worst view's eye and look-at point (for `render --camera
     /// --look-at`).
@@ -70,8 +74,10 @@ pub struct SchemeCracks {
     pub worst_images: Option<(Image, Image)>,
 }
 
+/// The crack survey: each scheme against brute force over many seeded views.
 #[derive(Clone, Debug, Serialize)]
 pub struct CrackReport {
+    /// Views surveyed per scheme.
     pub views: usize,
     /// Holes over all surveyed schemes.
     pub crack_pixels: usize,
@@ -79,7 +85,9 @@ pub struct CrackReport {
     pub lod_sky_pixels: usize,
     /// Far-depth pixels over all surveyed schemes.
     pub far_depth_pixels: usize,
+    /// The view with the most hole pixels over all schemes.
     pub worst_view: usize,
+    /// Per scheme.
     pub schemes: Vec<SchemeCracks>,
 }
 

@@ -62,11 +62,14 @@ pub enum Mark {
 /// The key beside the map: rows of marks and labels, and the scale bar.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Legend {
+    /// Each row's mark and label, top to bottom.
     pub rows: Vec<(Mark, String)>,
     /// The scale bar's length in metres (1, 2 or 5 × 10^k), its label,
     /// and its length in pixels.
     pub scale_m: f64,
+    /// The bar's length as a label ("2 km").
     pub scale_label: String,
+    /// The bar's length in pixels.
     pub scale_px: f32,
 }
 

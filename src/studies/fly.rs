@@ -10,29 +10,40 @@ use crate::studies::metrics;
 use crate::studies::views;
 use serde::Serialize;
 
+/// One frame of a fly-through (`fly --json` `frames`).
 #[derive(Clone, Debug, Serialize)]
 pub struct FlyFrame {
+    /// Frame number from 0.
     pub frame: usize,
     /// Whole frame on the CPU (ms), and the LOD update and mesh passes.
     pub ms: f64,
+    /// The LOD update pass (ms).
     pub update_ms: f64,
+    /// The mesh pass (ms).
     pub mesh_ms: f64,
+    /// Texels the update rewrote (clipmap).
     pub texels_updated: u64,
+    /// Changes the update made: rectangles, splits and merges, or blocks re-levelled.
     pub changes: u64,
+    /// Triangles drawn.
     pub triangles: usize,
     /// Against the previous frame (metrics::popping); 0 for the first
     /// frame, for brute force itself and with popping off.
     pub popping: f64,
 }
 
+/// A fly-through: per-frame costs and popping along a straight path.
 #[derive(Clone, Debug, Serialize)]
 pub struct FlyReport {
+    /// The scheme flown.
     pub lod: String,
+    /// Every frame.
     pub frames: Vec<FlyFrame>,
     /// Mean update time over frames after the first (the first builds).
     pub mean_update_ms: f64,
     /// Texels rewritten over frames after the first.
     pub texels_updated: u64,
+    /// The largest popping of any frame.
     pub popping_max: f64,
 }
 

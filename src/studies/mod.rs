@@ -7,7 +7,7 @@ pub mod cracks;
 pub mod diagram;
 pub mod fly;
 pub mod metrics;
-pub mod report;
+pub(crate) mod report;
 pub mod scaling;
 pub mod tradeoff;
 pub mod views;

@@ -32,6 +32,7 @@ pub struct Options {
     /// Clipmap n and level count for the size test (the clipmap must fit in
     /// the smallest map for the views to match).
     pub n: i64,
+    /// Clipmap levels for the size test.
     pub levels: usize,
     /// Frames per size (the camera pans one texel per frame).
     pub frames: usize,
@@ -39,13 +40,16 @@ pub struct Options {
     pub brute_max: usize,
     /// n and L of the incremental-update test, on its own map.
     pub update_n: i64,
+    /// Levels of the incremental-update test.
     pub update_levels: usize,
     /// Repeats of the update test's walks and rebuilds; medians reported.
     pub update_repeats: usize,
+    /// Image width and height.
     pub image: [u32; 2],
     /// n of the lazy first-frame test on the largest size (every level
     /// the map allows), and the lazy pyramid's samples per frame.
     pub first_n: i64,
+    /// Samples per frame of the lazy pyramid in the first-frame test.
     pub first_budget: u64,
     /// Frames the first-frame test may render until every level is drawn.
     pub first_max_frames: usize,
@@ -73,14 +77,21 @@ impl Default for Options {
 /// One terrain size.
 #[derive(Clone, Debug, Serialize)]
 pub struct SizeRow {
+    /// Texels per side.
     pub size: usize,
+    /// Generating the terrain (ms).
     pub terrain_ms: f64,
+    /// Building its pyramid (ms).
     pub pyramid_ms: f64,
+    /// Pyramid levels built.
     pub pyramid_levels: usize,
     /// Median frame (LOD update, mesh, vertex, raster, shade), ms.
     pub clipmap_frame_ms: f64,
+    /// Triangles in the clipmap's frame.
     pub clipmap_triangles: usize,
+    /// Brute force's median frame (ms), up to `brute_max`.
     pub brute_frame_ms: Option<f64>,
+    /// Brute force's triangles.
     pub brute_triangles: Option<usize>,
 }
 
@@ -89,7 +100,9 @@ pub struct SizeRow {
 pub struct UpdateRow {
     /// The map's width (its height is a quarter of it).
     pub size: usize,
+    /// Clipmap n.
     pub n: i64,
+    /// Clipmap levels.
     pub levels: usize,
     /// Median of full rebuilds (every texel of every level written) after
     /// jumps to places not read before, which is when a rebuild happens
@@ -102,6 +115,7 @@ pub struct UpdateRow {
     /// Median of rebuilds of one window again and again, its source
     /// already in cache: the best a rebuild can do.
     pub full_same_window_ms: f64,
+    /// Texels a full rebuild writes.
     pub full_texels: u64,
     /// Bytes of the update map's pyramid (heights and no-data masks, all
     /// levels), and how many of them the kernel put on huge pages (the
@@ -110,6 +124,7 @@ pub struct UpdateRow {
     /// TLB entry per 2 MB instead of one per row, so a machine that grants
     /// none reads slower walks.
     pub map_bytes: u64,
+    /// Of `map_bytes`, those on huge pages (`null` off Linux).
     pub map_huge_page_bytes: Option<u64>,
     /// Each repeat walks from its own start, on terrain the others did
     /// not read, with its own rebuilds; the walks' figures are medians.
@@ -122,10 +137,13 @@ pub struct UpdateRow {
 /// One walk of `frames` one-texel steps.
 #[derive(Clone, Debug, Serialize)]
 pub struct Walk {
+    /// `east`, `south` or `south-east`.
     pub direction: &'static str,
+    /// Steps walked.
     pub frames: usize,
     /// Mean per frame (median of the repeats).
     pub incremental_ms: f64,
+    /// Texels rewritten per frame (median of the repeats).
     pub incremental_texels: f64,
     /// Source rows copied into column blocks per frame (median of the
     /// repeats; see `clipmap::columns`): the fresh reads a walk makes
@@ -133,6 +151,7 @@ pub struct Walk {
     pub column_rows: f64,
     /// incremental_ms ÷ full_ms.
     pub time_ratio: f64,
+    /// incremental texels ÷ full texels.
     pub texel_ratio: f64,
     /// Median over repeats of (walk ÷ that repeat's rebuilds) ÷
     /// texel_ratio; the target is ≤ 1.2.
@@ -146,6 +165,7 @@ pub struct Walk {
 /// Peak resident memory while every size was loaded and its pyramid built.
 #[derive(Clone, Debug, Serialize)]
 pub struct MemoryRow {
+    /// Peak resident set size (bytes; `null` off Linux).
     pub peak_rss_bytes: Option<u64>,
     /// Heightmaps (f32 + no-data flag per texel), all sizes.
     pub heightmap_bytes: u64,
@@ -159,37 +179,49 @@ pub struct MemoryRow {
 /// generated before the clipmap's first update asks for its tiles.
 #[derive(Clone, Debug, Serialize)]
 pub struct FirstFrameRow {
+    /// Texels per side of the map.
     pub size: usize,
+    /// Clipmap n.
     pub n: i64,
     /// Clipmap levels (all the map allows) and how many the first frame
     /// drew; the coarser ones wait for their tiles.
     pub levels: usize,
+    /// Levels the first frame drew.
     pub levels_drawn: usize,
+    /// Lazy pyramid samples per frame.
     pub budget: u64,
     /// Scene to image: session, pyramid tiles, LOD, mesh, raster, shade.
     pub first_frame_ms: f64,
+    /// Triangles in the first frame.
     pub triangles: usize,
     /// Pyramid samples the first frame built, and an eager pyramid's.
     pub samples_built: u64,
+    /// Samples an eager pyramid builds before its first frame.
     pub eager_samples: u64,
     /// Peak resident memory up to the first frame.
     pub peak_rss_bytes: Option<u64>,
     /// The same view kept still: frames until every level is drawn, and
     /// their total time (`None` if `first_max_frames` did not suffice).
     pub frames_to_all_levels: Option<usize>,
+    /// Their total time (ms).
     pub all_levels_ms: Option<f64>,
 }
 
+/// `scaling --json`: cost against terrain size, incremental update against rebuilds,
+/// memory, and the lazy first frame.
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
     /// Lazy first frame of the largest size; the target is < 1 s.
     pub first_frame: FirstFrameRow,
+    /// One row per terrain size, smallest first.
     pub sizes: Vec<SizeRow>,
     /// Clipmap frame time, largest ÷ smallest size; the target is ≤ 1.05.
     pub clipmap_ratio: f64,
     /// Brute force, largest ÷ smallest size it ran on.
     pub brute_ratio: Option<f64>,
+    /// Incremental update against full rebuilds.
     pub update: UpdateRow,
+    /// Peak memory against the data's size.
     pub memory: MemoryRow,
 }
 

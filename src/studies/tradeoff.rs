@@ -26,6 +26,7 @@ pub struct Setting {
     pub lod: String,
     /// The setting, human readable ("n=63 strips", "tau=4px").
     pub config: String,
+    /// The scene rendered with this setting.
     pub scene: Scene,
     /// Samples per pixel (1, 4, 16); the reference is then a 64× render
     /// of the same setting instead of brute force.
@@ -35,21 +36,32 @@ pub struct Setting {
 /// One row of the report (the JSON `rows`).
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
+    /// Series name: the scheme, or "supersample".
     pub lod: String,
+    /// The setting, human readable.
     pub config: String,
     /// Mean over the views of each view's median frame time (3 frames,
     /// after a warm-up frame one step back), and its parts (ms).
     pub ms: f64,
+    /// LOD update (ms).
     pub ms_lod: f64,
+    /// Mesh generation (ms).
     pub ms_mesh: f64,
+    /// Vertex stage (ms).
     pub ms_vertex: f64,
+    /// Rasterisation (ms).
     pub ms_raster: f64,
+    /// Shading (ms).
     pub ms_shade: f64,
     /// Mean RMSE over all views, the wide views and the low-FOV views.
     pub rmse: f64,
+    /// Mean RMSE over the wide views.
     pub rmse_wide: f64,
+    /// Mean RMSE over the low-FOV views.
     pub rmse_low_fov: f64,
+    /// The largest RGB channel difference over all views.
     pub max_abs: u8,
+    /// Mean depth error (metres) over all views.
     pub depth_m: f64,
     /// Mean triangles drawn per view.
     pub triangles: f64,
@@ -65,17 +77,24 @@ pub struct Row {
 /// which scheme has the lowest RMSE?".
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
+    /// The views' names, wide first.
     pub views: Vec<String>,
+    /// Image width and height.
     pub size: [u32; 2],
+    /// Frames along the popping path.
     pub path_frames: usize,
+    /// Every setting measured.
     pub rows: Vec<Row>,
+    /// A tenth of brute force's time (ms): the budget `best_in_budget` answers for.
     pub budget_ms: f64,
+    /// The row with the lowest RMSE within the budget.
     pub best_in_budget: Option<Row>,
 }
 
 /// How much to measure.
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
+    /// Image width and height.
     pub size: [u32; 2],
     /// Frames along the popping path.
     pub path_frames: usize,

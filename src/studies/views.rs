@@ -13,6 +13,7 @@ use glam::DVec3;
 pub struct Rng(u64);
 
 impl Rng {
+    /// A generator started from `seed`: the same views on every machine.
     pub fn new(seed: u64) -> Self {
         Rng(seed.max(1))
     }
@@ -28,9 +29,11 @@ impl Rng {
 /// A named view.
 #[derive(Clone, Debug)]
 pub struct NamedView {
+    /// The view's name in reports (`wide-3`, `low-fov-20`).
     pub name: String,
     /// "wide" or "low-fov".
     pub kind: &'static str,
+    /// The camera.
     pub camera: Camera,
 }
 

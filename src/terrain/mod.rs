@@ -9,7 +9,7 @@
 //! assume finite values.
 
 mod asc;
-pub mod huge;
+pub(crate) mod huge;
 mod image_file;
 pub mod procedural;
 mod raw;
@@ -143,9 +143,11 @@ impl Heightmap {
         }
     }
 
+    /// Samples across.
     pub fn width(&self) -> usize {
         self.width
     }
+    /// Samples down.
     pub fn height(&self) -> usize {
         self.height
     }

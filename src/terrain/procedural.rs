@@ -11,12 +11,16 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Procedural {
+    /// Seed: the same map on every machine and thread count.
     pub seed: u64,
+    /// Samples across.
     pub width: usize,
+    /// Samples down.
     pub height: usize,
     /// Wavelength of the first octave in texels.
     #[serde(default = "default_wavelength")]
     pub wavelength: f64,
+    /// Octaves of noise summed (fBm).
     #[serde(default = "default_octaves")]
     pub octaves: u32,
     /// Peak-to-trough amplitude in metres, before `vertical_scale`.

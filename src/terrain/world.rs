@@ -8,6 +8,9 @@
 
 use glam::DVec3;
 
+/// Where the heightmap's grid sits in the world: metres per cell, per height unit,
+/// and the north-west corner. Every stage converts through it, so grid and world
+/// agree everywhere.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WorldMap {
     /// Cell size in metres along columns (x) and rows (y).
@@ -25,6 +28,8 @@ impl WorldMap {
         WorldMap::new(cell, spec.vertical_scale).placed_at(spec.origin)
     }
 
+    /// A map with `cell` metres per cell (x, y) and `vertical_scale` metres per height
+    /// unit, its north-west corner at the world origin.
     pub fn new(cell: [f64; 2], vertical_scale: f64) -> Self {
         WorldMap {
             cell,
