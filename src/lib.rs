@@ -24,6 +24,7 @@ pub mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod lod;
+pub mod pack;
 pub mod pyramid;
 pub mod raster;
 pub mod render;

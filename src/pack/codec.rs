@@ -1,0 +1,703 @@
+//! LH04's compressed residual pyramid. The coarsest level is coded on its
+//! own (each sample predicted from its left or upper neighbour); each finer
+//! level is coded as residuals against a prediction from the reconstructed
+//! coarser level, by the tensor-product four-point subdivision scheme
+//! (weights −1/16, 9/16, 9/16, −1/16; a sample on the coarse grid takes the
+//! coarse sample). The loop is closed: prediction reads reconstructed
+//! values, so quantisation errors do not add up from level to level.
+//!
+//! Each level is cut into square tiles coded apart, so any tile of any
+//! level can be decoded alone from the reconstructed coarser level around
+//! it: what a clipmap update needs for the strips it uncovers. A tile's
+//! residuals are entropy-coded with constriction's ANS coder, under one
+//! model of a fixed family ([`super::model`]) per sample phase (even/odd
+//! column and row), which the encoder picks for the tile.
+
+use super::model::{self, ESCAPE, K, SCALES};
+use crate::pyramid::PyramidLevel;
+use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
+use constriction::stream::stack::DefaultAnsCoder;
+use constriction::stream::{Decode, Encode};
+use rayon::prelude::*;
+
+/// How a level's samples are quantised.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Quant {
+    /// Bounded error: residuals in steps of 2·`max_error`, so every
+    /// decoded sample is within `max_error` of the input.
+    Step {
+        /// The bound E, metres (height units).
+        max_error: f64,
+    },
+    /// Lossless on a lattice: every sample is `(offset + k·scale) as f32`
+    /// for an integer k (a 16-bit PNG with its sidecar, say), and the
+    /// residuals are in units of k.
+    Lattice {
+        /// The lattice's origin.
+        offset: f64,
+        /// Its step.
+        scale: f64,
+    },
+    /// Lossless on the f32 bit patterns, as ordered integers.
+    Bits,
+}
+
+/// A lattice the heightmap's samples lie on, from the reader that decoded
+/// them: `value = (offset + code × scale) as f32`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lattice {
+    /// The value of code 0.
+    pub offset: f64,
+    /// The value of one code step.
+    pub scale: f64,
+}
+
+/// f32 bits as an integer that orders like the value.
+fn ordered(v: f32) -> i64 {
+    let b = v.to_bits() as i32;
+    (if b < 0 { b ^ 0x7fff_ffff } else { b }) as i64
+}
+
+fn from_ordered(o: i64) -> Option<f32> {
+    let b = i32::try_from(o).ok()?;
+    Some(f32::from_bits(
+        (if b < 0 { b ^ 0x7fff_ffff } else { b }) as u32,
+    ))
+}
+
+/// A sample coded: its residual, and the raw bits when no residual
+/// reconstructs it within the bound.
+struct Coded {
+    q: i64,
+    raw: Option<u32>,
+    rec: f32,
+}
+
+impl Quant {
+    /// Codes `x` against prediction `p`.
+    fn code(&self, x: f32, p: f64) -> Coded {
+        let raw = Coded {
+            q: 0,
+            raw: Some(x.to_bits()),
+            rec: x,
+        };
+        match *self {
+            Quant::Step { max_error } => {
+                let s = 2.0 * max_error;
+                let q = ((x as f64 - p) / s).round();
+                if !q.is_finite() || q.abs() > 1e15 {
+                    return raw;
+                }
+                let q = q as i64;
+                for q in [q, q - 1, q + 1] {
+                    let rec = self.rec(p, q);
+                    if (rec as f64 - x as f64).abs() <= max_error {
+                        return Coded { q, raw: None, rec };
+                    }
+                }
+                raw
+            }
+            Quant::Lattice { offset, scale } => {
+                let k = ((x as f64 - offset) / scale).round();
+                let kp = ((p - offset) / scale).round();
+                if !(k.is_finite() && kp.is_finite() && k.abs() < 1e15 && kp.abs() < 1e15) {
+                    return raw;
+                }
+                let q = k as i64 - kp as i64;
+                let rec = self.rec(p, q);
+                if rec.to_bits() == x.to_bits() {
+                    Coded { q, raw: None, rec }
+                } else {
+                    raw
+                }
+            }
+            Quant::Bits => {
+                let q = ordered(x) - ordered(p as f32);
+                Coded {
+                    q,
+                    raw: None,
+                    rec: x,
+                }
+            }
+        }
+    }
+
+    /// The sample residual `q` reconstructs against prediction `p`.
+    fn rec(&self, p: f64, q: i64) -> f32 {
+        match *self {
+            Quant::Step { max_error } => (p + q as f64 * (2.0 * max_error)) as f32,
+            Quant::Lattice { offset, scale } => {
+                let kp = ((p - offset) / scale).round() as i64;
+                (offset + (kp + q) as f64 * scale) as f32
+            }
+            Quant::Bits => from_ordered(ordered(p as f32) + q).unwrap_or(f32::NAN),
+        }
+    }
+}
+
+/// The coarser level a tile is predicted from, read with clamped indices.
+pub trait Coarse: Sync {
+    /// Sample (i, j), clamped to the level's extent.
+    fn at(&self, i: i64, j: i64) -> f32;
+}
+
+impl Coarse for PyramidLevel {
+    fn at(&self, i: i64, j: i64) -> f32 {
+        self.get_clamped(i, j)
+    }
+}
+
+/// The four-point weights (×16) of fine position `x` over coarse samples
+/// `x/2 − 1 ..= x/2 + 2`: the coarse sample itself at even positions.
+#[inline]
+fn taps(x: i64) -> (i64, [f64; 4]) {
+    let i = x.div_euclid(2);
+    if x % 2 == 0 {
+        (i, [0.0, 16.0, 0.0, 0.0])
+    } else {
+        (i, [-1.0, 9.0, 9.0, -1.0])
+    }
+}
+
+/// The prediction of fine sample (x, y) from the coarser level: the
+/// tensor-product four-point scheme, summed row by row in a fixed order.
+#[inline]
+pub fn predict(c: &dyn Coarse, x: i64, y: i64) -> f64 {
+    let (i, wx) = taps(x);
+    let (j, wy) = taps(y);
+    let mut p = 0.0;
+    for (dj, &w) in wy.iter().enumerate() {
+        if w == 0.0 {
+            continue;
+        }
+        let mut row = 0.0;
+        for (di, &v) in wx.iter().enumerate() {
+            if v != 0.0 {
+                row += v * c.at(i - 1 + di as i64, j - 1 + dj as i64) as f64;
+            }
+        }
+        p += w * row;
+    }
+    p / 256.0
+}
+
+/// One level as coded.
+#[derive(Clone, Debug)]
+pub struct PackedLevel {
+    /// Samples across.
+    pub width: usize,
+    /// Samples down.
+    pub height: usize,
+    /// How the level is quantised.
+    pub quant: Quant,
+    /// The coded tiles, row-major.
+    pub tiles: Vec<Vec<u8>>,
+}
+
+/// A coded pyramid.
+#[derive(Clone, Debug)]
+pub struct Packed {
+    /// Tile side in samples.
+    pub tile: usize,
+    /// The bound the pyramid was coded to; 0 is lossless.
+    pub max_error: f64,
+    /// The levels, finest first.
+    pub levels: Vec<PackedLevel>,
+}
+
+/// What went wrong decoding a tile.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileError {
+    /// Level, 0 the finest.
+    pub level: usize,
+    /// Tile column and row.
+    pub tile: [usize; 2],
+    /// Why.
+    pub reason: String,
+}
+
+impl std::fmt::Display for TileError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "level {} tile ({}, {}): {}",
+            self.level, self.tile[0], self.tile[1], self.reason
+        )
+    }
+}
+
+/// A decoded tile: its rectangle of the level and its samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tile {
+    /// First column and row in the level.
+    pub x0: usize,
+    /// First row.
+    pub y0: usize,
+    /// Samples across.
+    pub width: usize,
+    /// Samples down.
+    pub height: usize,
+    /// Heights, row-major.
+    pub data: Vec<f32>,
+    /// No-data flags, row-major.
+    pub nodata: Vec<bool>,
+}
+
+/// Tile flags: the tile's no-data mask is mixed (coded), or all no-data.
+const MIXED: u8 = 1;
+const ALL_NODATA: u8 = 2;
+/// Header bytes: flags, four model indices, side-stream length (u32),
+/// no-data count (u32).
+const HEADER: usize = 1 + 4 + 4 + 4;
+
+fn zigzag(q: i64) -> u64 {
+    ((q << 1) ^ (q >> 63)) as u64
+}
+
+fn unzigzag(z: u64) -> i64 {
+    (z >> 1) as i64 ^ -((z & 1) as i64)
+}
+
+fn put_varint(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+fn get_varint(bytes: &[u8], at: &mut usize) -> Option<u64> {
+    let mut v = 0u64;
+    for shift in (0..64).step_by(7) {
+        let b = *bytes.get(*at)?;
+        *at += 1;
+        v |= ((b & 0x7f) as u64) << shift;
+        if b & 0x80 == 0 {
+            return Some(v);
+        }
+    }
+    None
+}
+
+/// The binary model of a tile's no-data mask, from its count.
+fn mask_model(count: u32, n: usize) -> DefaultContiguousCategoricalEntropyModel {
+    let full = 1u64 << 24;
+    let p1 = ((count as u64 * full) / n.max(1) as u64).clamp(1, full - 1);
+    DefaultContiguousCategoricalEntropyModel::from_nonzero_fixed_point_probabilities(
+        [(full - p1) as u32, p1 as u32],
+        false,
+    )
+    .expect("two nonzero probabilities summing to 2^24")
+}
+
+/// The rectangle of tile (tx, ty) of a `w`×`h` level.
+fn tile_rect(w: usize, h: usize, t: usize, tx: usize, ty: usize) -> (usize, usize, usize, usize) {
+    let (x0, y0) = (tx * t, ty * t);
+    (x0, y0, (x0 + t).min(w) - x0, (y0 + t).min(h) - y0)
+}
+
+/// Phase of sample (x, y): which of the four subdivision cases it is (0 on
+/// the coarsest level, which has no coarser one).
+#[inline]
+fn phase(x: usize, y: usize, top: bool) -> usize {
+    if top {
+        0
+    } else {
+        (x & 1) | ((y & 1) << 1)
+    }
+}
+
+/// Encodes one tile of `level` (its samples `src`), predicted from
+/// `coarse` (`None` on the coarsest level); returns the tile's bytes and
+/// its reconstruction.
+fn encode_tile(
+    src: &PyramidLevel,
+    coarse: Option<&dyn Coarse>,
+    quant: Quant,
+    rect: (usize, usize, usize, usize),
+) -> (Vec<u8>, Vec<f32>) {
+    let (x0, y0, w, h) = rect;
+    let n = w * h;
+    let mut rec = vec![0f32; n];
+    let mut sym = vec![0usize; n];
+    let mut side = Vec::new();
+    let top = coarse.is_none();
+    for ty in 0..h {
+        for tx in 0..w {
+            let (x, y) = (x0 + tx, y0 + ty);
+            let p = match coarse {
+                Some(c) => predict(c, x as i64, y as i64),
+                None if tx > 0 => rec[ty * w + tx - 1] as f64,
+                None if ty > 0 => rec[(ty - 1) * w] as f64,
+                None => 0.0,
+            };
+            let c = quant.code(src.data[y * src.width + x], p);
+            rec[ty * w + tx] = c.rec;
+            let s = match c.raw {
+                Some(bits) => {
+                    put_varint(&mut side, 1);
+                    side.extend_from_slice(&bits.to_le_bytes());
+                    ESCAPE
+                }
+                None => {
+                    let s = model::symbol(c.q);
+                    if s == ESCAPE {
+                        put_varint(&mut side, zigzag(c.q) << 1);
+                    }
+                    s
+                }
+            };
+            sym[ty * w + tx] = s;
+        }
+    }
+    // Each phase's cheapest model.
+    let costs: Vec<Vec<f64>> = (0..SCALES).map(model::costs).collect();
+    let mut best = [0u8; 4];
+    for (ph, b) in best.iter_mut().enumerate() {
+        let mut counts = vec![0u64; model::SYMBOLS];
+        for ty in 0..h {
+            for tx in 0..w {
+                if phase(x0 + tx, y0 + ty, top) == ph {
+                    counts[sym[ty * w + tx]] += 1;
+                }
+            }
+        }
+        let bits = |k: usize| -> f64 {
+            counts
+                .iter()
+                .zip(&costs[k])
+                .map(|(&c, &b)| c as f64 * b)
+                .sum()
+        };
+        *b = (0..SCALES)
+            .min_by(|&a, &b| bits(a).total_cmp(&bits(b)))
+            .unwrap_or(0) as u8;
+    }
+    let nodata: Vec<bool> = (0..n)
+        .map(|i| src.nodata[(y0 + i / w) * src.width + x0 + i % w])
+        .collect();
+    let count = nodata.iter().filter(|&&b| b).count() as u32;
+    let flags = if count == 0 {
+        0
+    } else if count as usize == n {
+        ALL_NODATA
+    } else {
+        MIXED
+    };
+    // ANS is a stack: push in the reverse of the decoding order (mask,
+    // then the samples in raster order).
+    let models = model::models();
+    let mut ans = DefaultAnsCoder::new();
+    for i in (0..n).rev() {
+        let m = &models[best[phase(x0 + i % w, y0 + i / w, top)] as usize];
+        ans.encode_symbol(sym[i], m)
+            .expect("every symbol has a nonzero probability");
+    }
+    if flags == MIXED {
+        let mm = mask_model(count, n);
+        for &b in nodata.iter().rev() {
+            ans.encode_symbol(usize::from(b), &mm)
+                .expect("both mask symbols have nonzero probability");
+        }
+    }
+    let words = ans.into_compressed().unwrap_or_default();
+    let mut out = Vec::with_capacity(HEADER + side.len() + 4 * words.len());
+    out.push(flags);
+    out.extend_from_slice(&best);
+    out.extend_from_slice(&(side.len() as u32).to_le_bytes());
+    out.extend_from_slice(&count.to_le_bytes());
+    out.extend_from_slice(&side);
+    for w in words {
+        out.extend_from_slice(&w.to_le_bytes());
+    }
+    (out, rec)
+}
+
+/// Decodes tile `bytes` covering `rect` of a level quantised by `quant`,
+/// predicted from `coarse` (`None` on the coarsest level).
+fn decode_tile(
+    bytes: &[u8],
+    coarse: Option<&dyn Coarse>,
+    quant: Quant,
+    rect: (usize, usize, usize, usize),
+) -> Result<(Vec<f32>, Vec<bool>), String> {
+    let (x0, y0, w, h) = rect;
+    let n = w * h;
+    if bytes.len() < HEADER {
+        return Err(format!(
+            "{} bytes, shorter than the {HEADER}-byte header",
+            bytes.len()
+        ));
+    }
+    let flags = bytes[0];
+    if flags > ALL_NODATA {
+        return Err(format!("unknown flags {flags:#x}"));
+    }
+    let best: [u8; 4] = [bytes[1], bytes[2], bytes[3], bytes[4]];
+    if let Some(&k) = best.iter().find(|&&k| k as usize >= SCALES) {
+        return Err(format!("model {k} does not exist (there are {SCALES})"));
+    }
+    let le =
+        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let side_len = le(5) as usize;
+    let count = le(9);
+    let rest = &bytes[HEADER..];
+    if side_len > rest.len() || (rest.len() - side_len) % 4 != 0 {
+        return Err(format!(
+            "side stream of {side_len} bytes does not fit the tile's {} bytes",
+            rest.len()
+        ));
+    }
+    if count as usize > n || (flags == MIXED) != (count > 0 && (count as usize) < n) {
+        return Err(format!(
+            "no-data count {count} does not fit {n} samples and flags {flags:#x}"
+        ));
+    }
+    let side = &rest[..side_len];
+    let words: Vec<u32> = rest[side_len..]
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    let mut ans = DefaultAnsCoder::from_compressed(words)
+        .map_err(|_| "the coded stream ends in a zero word".to_string())?;
+    let broken = |what: &str| format!("coded stream broken in the {what}");
+    let nodata: Vec<bool> = match flags {
+        MIXED => {
+            let mm = mask_model(count, n);
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n {
+                v.push(ans.decode_symbol(&mm).map_err(|_| broken("no-data mask"))? == 1);
+            }
+            v
+        }
+        ALL_NODATA => vec![true; n],
+        _ => vec![false; n],
+    };
+    let models = model::models();
+    let top = coarse.is_none();
+    let mut rec = vec![0f32; n];
+    let mut at = 0usize;
+    for ty in 0..h {
+        for tx in 0..w {
+            let (x, y) = (x0 + tx, y0 + ty);
+            let m = &models[best[phase(x, y, top)] as usize];
+            let s = ans.decode_symbol(m).map_err(|_| broken("residuals"))?;
+            let p = match coarse {
+                Some(c) => predict(c, x as i64, y as i64),
+                None if tx > 0 => rec[ty * w + tx - 1] as f64,
+                None if ty > 0 => rec[(ty - 1) * w] as f64,
+                None => 0.0,
+            };
+            rec[ty * w + tx] = if s == ESCAPE {
+                let v = get_varint(side, &mut at).ok_or_else(|| broken("side stream"))?;
+                if v == 1 {
+                    let b = side.get(at..at + 4).ok_or_else(|| broken("side stream"))?;
+                    at += 4;
+                    f32::from_bits(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                } else {
+                    quant.rec(p, unzigzag(v >> 1))
+                }
+            } else {
+                quant.rec(p, s as i64 - K)
+            };
+        }
+    }
+    if at != side.len() {
+        return Err(format!("{} side-stream bytes left over", side.len() - at));
+    }
+    if !ans.is_empty() {
+        return Err("coded words left over".into());
+    }
+    Ok((rec, nodata))
+}
+
+fn level_of(width: usize, height: usize, data: Vec<f32>, nodata: Vec<bool>) -> PyramidLevel {
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+    for (&v, &nd) in data.iter().zip(&nodata) {
+        if !nd {
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+    }
+    if lo > hi {
+        (lo, hi) = (data[0], data[0]);
+    }
+    PyramidLevel {
+        width,
+        height,
+        data,
+        nodata,
+        min: lo,
+        max: hi,
+    }
+}
+
+/// The quantisation of a level: bounded error when `max_error` > 0;
+/// otherwise lossless, on `lattice` where every sample lies on it.
+fn quant_for(level: &PyramidLevel, max_error: f64, lattice: Option<Lattice>) -> Quant {
+    if max_error > 0.0 {
+        return Quant::Step { max_error };
+    }
+    if let Some(Lattice { offset, scale }) = lattice {
+        if scale > 0.0 && scale.is_finite() && offset.is_finite() {
+            let q = Quant::Lattice { offset, scale };
+            let on = level.data.par_iter().all(|&x| {
+                let k = ((x as f64 - offset) / scale).round();
+                k.is_finite() && (offset + k * scale) as f32 == x
+            });
+            if on {
+                return q;
+            }
+        }
+    }
+    Quant::Bits
+}
+
+impl Packed {
+    /// Codes `levels` (finest first, each the filtered half of the one
+    /// before) to within `max_error` of every sample, in `tile`² tiles.
+    /// `lattice` is level 0's, where the reader knows one (it makes
+    /// `max_error` 0 cheap). Returns the pack and its reconstruction, which
+    /// is what decoding gives.
+    pub fn encode(
+        levels: &[PyramidLevel],
+        max_error: f64,
+        tile: usize,
+        lattice: Option<Lattice>,
+    ) -> (Packed, Vec<PyramidLevel>) {
+        let tile = tile.max(2);
+        let mut packed: Vec<PackedLevel> = Vec::with_capacity(levels.len());
+        let mut recon: Vec<PyramidLevel> = Vec::with_capacity(levels.len());
+        for (l, src) in levels.iter().enumerate().rev() {
+            let quant = quant_for(src, max_error, if l == 0 { lattice } else { None });
+            let coarse = recon.last();
+            let (tx, ty) = (src.width.div_ceil(tile), src.height.div_ceil(tile));
+            let coded: Vec<(Vec<u8>, Vec<f32>)> = (0..tx * ty)
+                .into_par_iter()
+                .map(|t| {
+                    let rect = tile_rect(src.width, src.height, tile, t % tx, t / tx);
+                    encode_tile(src, coarse.map(|c| c as &dyn Coarse), quant, rect)
+                })
+                .collect();
+            let mut data = vec![0f32; src.width * src.height];
+            let mut bytes = Vec::with_capacity(coded.len());
+            for (t, (b, r)) in coded.into_iter().enumerate() {
+                let (x0, y0, w, h) = tile_rect(src.width, src.height, tile, t % tx, t / tx);
+                for row in 0..h {
+                    data[(y0 + row) * src.width + x0..][..w].copy_from_slice(&r[row * w..][..w]);
+                }
+                bytes.push(b);
+            }
+            recon.push(level_of(src.width, src.height, data, src.nodata.clone()));
+            packed.push(PackedLevel {
+                width: src.width,
+                height: src.height,
+                quant,
+                tiles: bytes,
+            });
+        }
+        packed.reverse();
+        recon.reverse();
+        (
+            Packed {
+                tile,
+                max_error,
+                levels: packed,
+            },
+            recon,
+        )
+    }
+
+    /// Tiles across and down of level `l`.
+    pub fn tiles_of(&self, l: usize) -> [usize; 2] {
+        let lv = &self.levels[l];
+        [lv.width.div_ceil(self.tile), lv.height.div_ceil(self.tile)]
+    }
+
+    /// Decodes tile (tx, ty) of level `l`, predicted from `coarse`, the
+    /// reconstructed level l + 1 (ignored on the coarsest level).
+    pub fn decode_tile(
+        &self,
+        l: usize,
+        [tx, ty]: [usize; 2],
+        coarse: &dyn Coarse,
+    ) -> Result<Tile, TileError> {
+        let lv = &self.levels[l];
+        let [nx, ny] = self.tiles_of(l);
+        let err = |reason: String| TileError {
+            level: l,
+            tile: [tx, ty],
+            reason,
+        };
+        if tx >= nx || ty >= ny {
+            return Err(err(format!("outside the level's {nx} × {ny} tiles")));
+        }
+        let rect = tile_rect(lv.width, lv.height, self.tile, tx, ty);
+        let top = l + 1 == self.levels.len();
+        let c = (!top).then_some(coarse);
+        let (data, nodata) =
+            decode_tile(&lv.tiles[ty * nx + tx], c, lv.quant, rect).map_err(err)?;
+        Ok(Tile {
+            x0: rect.0,
+            y0: rect.1,
+            width: rect.2,
+            height: rect.3,
+            data,
+            nodata,
+        })
+    }
+
+    /// Decodes level `l` whole from `coarse`, the reconstructed level l + 1
+    /// (`None` on the coarsest level), tiles in parallel.
+    pub fn decode_level(
+        &self,
+        l: usize,
+        coarse: Option<&PyramidLevel>,
+    ) -> Result<PyramidLevel, TileError> {
+        let lv = &self.levels[l];
+        let [nx, ny] = self.tiles_of(l);
+        let empty = PyramidLevel {
+            width: 1,
+            height: 1,
+            data: vec![0.0],
+            nodata: vec![false],
+            min: 0.0,
+            max: 0.0,
+        };
+        let c = coarse.unwrap_or(&empty);
+        let tiles: Vec<Tile> = (0..nx * ny)
+            .into_par_iter()
+            .map(|t| self.decode_tile(l, [t % nx, t / nx], c))
+            .collect::<Result<_, _>>()?;
+        let mut data = vec![0f32; lv.width * lv.height];
+        let mut nodata = vec![false; lv.width * lv.height];
+        for t in &tiles {
+            for row in 0..t.height {
+                let at = (t.y0 + row) * lv.width + t.x0;
+                data[at..at + t.width].copy_from_slice(&t.data[row * t.width..][..t.width]);
+                nodata[at..at + t.width].copy_from_slice(&t.nodata[row * t.width..][..t.width]);
+            }
+        }
+        Ok(level_of(lv.width, lv.height, data, nodata))
+    }
+
+    /// Decodes every level, coarse to fine; finest first.
+    pub fn decode(&self) -> Result<Vec<PyramidLevel>, TileError> {
+        let mut out: Vec<PyramidLevel> = Vec::with_capacity(self.levels.len());
+        for l in (0..self.levels.len()).rev() {
+            let next = self.decode_level(l, out.last())?;
+            out.push(next);
+        }
+        out.reverse();
+        Ok(out)
+    }
+
+    /// Bytes of every coded tile.
+    pub fn coded_bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .flat_map(|l| l.tiles.iter())
+            .map(|t| t.len())
+            .sum()
+    }
+}

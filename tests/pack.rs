@@ -1,0 +1,184 @@
+//! The residual pyramid codec: the error bound on every sample of every
+//! level, lossless packs bit for bit, tiles decoded alone equal to whole
+//! levels, the no-data mask, and damaged tiles as errors.
+
+mod common;
+
+use std::path::Path;
+use terraclip::pack::{Lattice, Packed, Quant};
+use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
+use terraclip::terrain::Heightmap;
+
+fn levels_of(map: &Heightmap) -> Vec<PyramidLevel> {
+    Pyramid::build(map, Filter::default(), 64).levels
+}
+
+fn jacksboro() -> (Heightmap, Lattice) {
+    let dem = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/dem");
+    let map = Heightmap::load(&dem.join("jacksboro_16.png")).unwrap();
+    // The sidecar's decode: elev = 236 + code × 0.012817578393224994.
+    let lattice = Lattice {
+        offset: 236.0,
+        scale: 0.012817578393224994,
+    };
+    (map, lattice)
+}
+
+/// The largest |decoded − source| over every sample of every level.
+fn worst(source: &[PyramidLevel], decoded: &[PyramidLevel]) -> f64 {
+    assert_eq!(source.len(), decoded.len());
+    source
+        .iter()
+        .zip(decoded)
+        .flat_map(|(s, d)| {
+            assert_eq!((s.width, s.height), (d.width, d.height));
+            assert_eq!(s.nodata, d.nodata);
+            s.data
+                .iter()
+                .zip(&d.data)
+                .map(|(&a, &b)| (a as f64 - b as f64).abs())
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn every_sample_of_every_level_is_within_the_bound() {
+    let map = common::terrain(3, 301, 157);
+    let src = levels_of(&map);
+    let mut sizes = vec![];
+    for e in [0.5, 1.0, 4.0] {
+        let (packed, recon) = Packed::encode(&src, e, 32, None);
+        let decoded = packed.decode().unwrap();
+        // The decoder gives exactly what the encoder predicted from.
+        for (r, d) in recon.iter().zip(&decoded) {
+            assert!(r
+                .data
+                .iter()
+                .zip(&d.data)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
+        let w = worst(&src, &decoded);
+        assert!(w <= e, "E = {e}: worst {w}");
+        // The bound is used, not beaten by storing everything raw.
+        assert!(w > e / 4.0, "E = {e}: worst {w}");
+        sizes.push(packed.coded_bytes());
+    }
+    // The coder is deterministic, so its sizes are exact figures: a change
+    // to the predictor, the quantiser or the models moves them (a wrong
+    // four-point weight still decodes within the bound, and only this sees
+    // it).
+    assert_eq!(sizes, [30381, 22885, 10205]);
+}
+
+#[test]
+fn a_lossless_pack_gives_the_same_bits() {
+    let (map, lattice) = jacksboro();
+    let src = levels_of(&map);
+    let (packed, _) = Packed::encode(&src, 0.0, 64, Some(lattice));
+    assert_eq!(
+        packed.levels[0].quant,
+        Quant::Lattice {
+            offset: lattice.offset,
+            scale: lattice.scale
+        }
+    );
+    assert!(packed.levels[1..].iter().all(|l| l.quant == Quant::Bits));
+    let decoded = packed.decode().unwrap();
+    for (s, d) in src.iter().zip(&decoded) {
+        assert!(s
+            .data
+            .iter()
+            .zip(&d.data)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+    // Without the lattice, level 0 is coded as bit patterns: still exact.
+    let (packed, _) = Packed::encode(&src[..2], 0.0, 64, None);
+    let decoded = packed.decode().unwrap();
+    assert!(src[0]
+        .data
+        .iter()
+        .zip(&decoded[0].data)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+}
+
+#[test]
+fn a_tile_decoded_alone_equals_its_part_of_the_level() {
+    let map = common::terrain(8, 203, 130);
+    let src = levels_of(&map);
+    let (packed, recon) = Packed::encode(&src, 1.0, 16, None);
+    for l in 0..src.len() {
+        let coarse = recon.get(l + 1).unwrap_or(&recon[l]);
+        let [nx, ny] = packed.tiles_of(l);
+        for ty in 0..ny {
+            for tx in 0..nx {
+                let t = packed.decode_tile(l, [tx, ty], coarse).unwrap();
+                for row in 0..t.height {
+                    let at = (t.y0 + row) * recon[l].width + t.x0;
+                    assert_eq!(
+                        &t.data[row * t.width..][..t.width],
+                        &recon[l].data[at..at + t.width],
+                        "level {l} tile ({tx}, {ty}) row {row}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_no_data_mask_is_coded() {
+    let base = common::terrain(4, 70, 50);
+    let mut mask = vec![false; 70 * 50];
+    for (i, m) in mask.iter_mut().enumerate() {
+        // A hole and a border strip: tiles with none, some and all.
+        let (x, y) = (i % 70, i / 70);
+        *m = (x as i64 - 30).pow(2) + (y as i64 - 20).pow(2) < 60 || x >= 64;
+    }
+    let values = base
+        .data()
+        .iter()
+        .zip(&mask)
+        .map(|(&v, &m)| if m { f32::NAN } else { v })
+        .collect();
+    let map = Heightmap::from_values(70, 50, values, None, [1.0; 2], "test").unwrap();
+    let src = levels_of(&map);
+    let (packed, _) = Packed::encode(&src, 1.0, 8, None);
+    let decoded = packed.decode().unwrap();
+    assert_eq!(decoded[0].nodata, mask);
+    assert!(worst(&src, &decoded) <= 1.0);
+}
+
+#[test]
+fn a_damaged_tile_is_an_error_that_names_it() {
+    let map = common::terrain(5, 65, 65);
+    let src = levels_of(&map);
+    let (packed, recon) = Packed::encode(&src, 1.0, 16, None);
+    let at = packed.tiles_of(0)[0] + 1;
+    let good = &packed.levels[0].tiles[at];
+    let mut seen_errors = 0;
+    let mut cases = 0;
+    // Every truncation, and a flipped bit in every byte.
+    let mut damaged: Vec<Vec<u8>> = (0..good.len()).map(|n| good[..n].to_vec()).collect();
+    for i in 0..good.len() {
+        let mut b = good.clone();
+        b[i] ^= 1 << (i % 8);
+        damaged.push(b);
+    }
+    for bytes in damaged {
+        let mut p = packed.clone();
+        p.levels[0].tiles[at] = bytes;
+        cases += 1;
+        match p.decode_tile(0, [1, 1], &recon[1]) {
+            Err(e) => {
+                assert_eq!((e.level, e.tile), (0, [1, 1]));
+                assert!(e.to_string().starts_with("level 0 tile (1, 1): "), "{e}");
+                seen_errors += 1;
+            }
+            // A flipped bit may still decode (to other heights): that is
+            // what a format-level checksum is for, not the tile coder.
+            Ok(t) => assert_eq!(t.data.len(), 16 * 16),
+        }
+    }
+    // Every truncation is caught.
+    assert!(seen_errors >= good.len(), "{seen_errors} of {cases}");
+}
