@@ -229,14 +229,8 @@ impl std::fmt::Display for TileError {
 /// A decoded tile: its rectangle of the level and its samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tile {
-    /// First column and row in the level.
-    pub x0: usize,
-    /// First row.
-    pub y0: usize,
-    /// Samples across.
-    pub width: usize,
-    /// Samples down.
-    pub height: usize,
+    /// First column, first row, samples across and samples down.
+    pub rect: [usize; 4],
     /// Heights, row-major.
     pub data: Vec<f32>,
     /// No-data flags, row-major.
@@ -638,10 +632,7 @@ impl Packed {
         let (data, nodata) =
             decode_tile(&lv.tiles[ty * nx + tx], c, lv.quant, rect).map_err(err)?;
         Ok(Tile {
-            x0: rect.0,
-            y0: rect.1,
-            width: rect.2,
-            height: rect.3,
+            rect: [rect.0, rect.1, rect.2, rect.3],
             data,
             nodata,
         })
@@ -672,10 +663,11 @@ impl Packed {
         let mut data = vec![0f32; lv.width * lv.height];
         let mut nodata = vec![false; lv.width * lv.height];
         for t in &tiles {
-            for row in 0..t.height {
-                let at = (t.y0 + row) * lv.width + t.x0;
-                data[at..at + t.width].copy_from_slice(&t.data[row * t.width..][..t.width]);
-                nodata[at..at + t.width].copy_from_slice(&t.nodata[row * t.width..][..t.width]);
+            let [x0, y0, w, h] = t.rect;
+            for row in 0..h {
+                let at = (y0 + row) * lv.width + x0;
+                data[at..at + w].copy_from_slice(&t.data[row * w..][..w]);
+                nodata[at..at + w].copy_from_slice(&t.nodata[row * w..][..w]);
             }
         }
         Ok(level_of(lv.width, lv.height, data, nodata))
