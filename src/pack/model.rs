@@ -102,6 +102,12 @@ pub fn costs(k: usize) -> Vec<f64> {
         .collect()
 }
 
+/// [`costs`] of every model, built once.
+pub fn all_costs() -> &'static [Vec<f64>] {
+    static COSTS: OnceLock<Vec<Vec<f64>>> = OnceLock::new();
+    COSTS.get_or_init(|| (0..SCALES).map(costs).collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
