@@ -16,11 +16,15 @@ fn levels_of(map: &Heightmap) -> Vec<PyramidLevel> {
 fn jacksboro() -> (Heightmap, Lattice) {
     let dem = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/dem");
     let map = Heightmap::load(&dem.join("jacksboro_16.png")).unwrap();
-    // The sidecar's decode: elev = 236 + code × 0.012817578393224994.
-    let lattice = Lattice {
-        offset: 236.0,
-        scale: 0.012817578393224994,
-    };
+    // The reader reports the sidecar's decode: elev = 236 + code × 0.0128….
+    let lattice = map.lattice.unwrap();
+    assert_eq!(
+        lattice,
+        Lattice {
+            offset: 236.0,
+            scale: 0.012817578393224994,
+        }
+    );
     (map, lattice)
 }
 

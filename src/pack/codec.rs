@@ -22,6 +22,7 @@
 
 use super::model::{self, ESCAPE, K, SCALES};
 use crate::pyramid::PyramidLevel;
+pub use crate::terrain::Lattice;
 use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
 use constriction::stream::stack::DefaultAnsCoder;
 use constriction::stream::{Decode, Encode};
@@ -47,16 +48,6 @@ pub enum Quant {
     },
     /// Lossless on the f32 bit patterns, as ordered integers.
     Bits,
-}
-
-/// A lattice the heightmap's samples lie on, from the reader that decoded
-/// them: `value = (offset + code × scale) as f32`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lattice {
-    /// The value of code 0.
-    pub offset: f64,
-    /// The value of one code step.
-    pub scale: f64,
 }
 
 /// f32 bits as an integer that orders like the value.

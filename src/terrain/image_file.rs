@@ -2,7 +2,7 @@
 //! (alpha 0 marks no-data), or RGB whose channels are equal. A 16-bit PNG with
 //! a JSON sidecar is decoded to metres with the sidecar's offset and scale.
 
-use super::{check_dimensions, named, sidecar, Heightmap, MAX_SIDE, MAX_TEXELS};
+use super::{check_dimensions, named, sidecar, Heightmap, Lattice, MAX_SIDE, MAX_TEXELS};
 use crate::error::{Error, Result};
 use image::DynamicImage;
 use std::path::Path;
@@ -36,7 +36,7 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
     };
     let (values, bits) = luma_values(&img).map_err(|r| Error::file(path, r))?;
     let side = sidecar::find(path);
-    let (values, cell, nodata, format) = match side {
+    let (values, cell, nodata, format, lattice) = match side {
         Some((side_path, s)) if bits == 16 && s.png16.is_some() => {
             s.check_dims(&side_path, w, h)?;
             let p = s.png16.clone().expect("checked above");
@@ -49,14 +49,29 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
                 s.cell_size(),
                 s.nodata.map(|v| v as f32),
                 format!("{kind}16+sidecar"),
+                Lattice {
+                    offset: p.png16_offset_m,
+                    scale: p.png16_scale_m_per_unit,
+                },
             )
         }
-        _ => (values, [1.0, 1.0], None, format!("{kind}{bits}")),
+        _ => (
+            values,
+            [1.0, 1.0],
+            None,
+            format!("{kind}{bits}"),
+            Lattice {
+                offset: 0.0,
+                scale: 1.0,
+            },
+        ),
     };
-    named(
+    let mut map = named(
         path,
         Heightmap::from_values(w, h, values, nodata, cell, &format),
-    )
+    )?;
+    map.lattice = Some(lattice);
+    Ok(map)
 }
 
 /// Grey values of an image as f32 (NaN where alpha is 0), with the bit depth.

@@ -43,6 +43,10 @@ pub struct Heightmap {
     /// names none. A geographic grid's cell size is converted from degrees
     /// to metres at the map's centre latitude.
     pub crs: Option<String>,
+    /// The lattice the reader decoded every sample from, where it knows
+    /// one (a 16-bit PNG and its sidecar, an 8- or 16-bit integer image):
+    /// a lossless pack codes the integer codes instead of the f32 bits.
+    pub lattice: Option<Lattice>,
 }
 
 /// Checks a width × height against [`MAX_SIDE`] and [`MAX_TEXELS`].
@@ -61,6 +65,16 @@ pub fn check_dimensions(width: u64, height: u64) -> std::result::Result<(), Stri
         ));
     }
     Ok(())
+}
+
+/// A lattice samples lie on: `value = (offset + code × scale) as f32` for an
+/// integer code, computed in f64.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lattice {
+    /// The value of code 0.
+    pub offset: f64,
+    /// The value of one code step.
+    pub scale: f64,
 }
 
 impl Heightmap {
@@ -119,6 +133,7 @@ impl Heightmap {
             cell_size,
             format: format.into(),
             crs: None,
+            lattice: None,
         })
     }
 
