@@ -39,8 +39,12 @@ enum Cmd {
     /// build time, incremental update against full rebuild, and peak memory,
     /// on procedural terrains.
     Scaling(cli::scaling::Args),
-    /// Print a heightmap's size, height range, no-data count and format.
+    /// Print a heightmap's size, height range, no-data count and format, or
+    /// what a pack holds.
     Info(cli::info::Args),
+    /// Pack a heightmap (or a scene's terrain) into a compressed residual
+    /// pyramid, every sample of every level within --max-error metres.
+    Pack(cli::pack::Args),
     /// Count crack pixels (background enclosed by terrain that brute force
     /// covers) from random views, for one or more LOD schemes.
     Cracks(cli::cracks::Args),
@@ -66,6 +70,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Bench(a)) => cli::bench::run(&a),
         Some(Cmd::Scaling(a)) => cli::scaling::run(&a),
         Some(Cmd::Info(a)) => cli::info::run(&a),
+        Some(Cmd::Pack(a)) => cli::pack::run(&a),
         Some(Cmd::Cracks(a)) => cli::cracks::run(&a),
         Some(Cmd::Tradeoff(a)) => cli::tradeoff::run(&a),
         Some(Cmd::Fly(a)) => cli::fly::run(&a),

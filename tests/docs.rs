@@ -174,6 +174,7 @@ fn every_json_key_is_in_docs_cli_md() {
     let (lazy, golden) = (s(&lazy_scene()), s(&one_golden()));
     let (png, diagram) = (s(&tmp("r.png")), s(&tmp("d.png")));
     let tradeoff_out = s(&tmp("tradeoff"));
+    let pack = s(&tmp("j.tcz"));
     let jacksboro = "tests/data/jacksboro_16.png";
     // Each command's runs: together they print every key the page lists.
     let runs: Vec<(&str, Vec<Vec<&str>>)> = vec![
@@ -270,7 +271,11 @@ fn every_json_key_is_in_docs_cli_md() {
                 "5000",
             ]],
         ),
-        ("info", vec![vec!["info", jacksboro]]),
+        (
+            "pack",
+            vec![vec!["pack", jacksboro, "-o", &pack, "--max-error", "1"]],
+        ),
+        ("info", vec![vec!["info", jacksboro], vec!["info", &pack]]),
         (
             "diagram",
             vec![vec!["diagram", "--size", "64", "-o", &diagram]],
@@ -327,7 +332,7 @@ fn every_json_key_is_in_docs_cli_md() {
 #[test]
 fn the_page_lists_the_keys_of_every_command() {
     let docs = documented();
-    assert_eq!(docs.len(), 11, "{:?}", docs.keys().collect::<Vec<_>>());
+    assert_eq!(docs.len(), 12, "{:?}", docs.keys().collect::<Vec<_>>());
     assert!(docs["render"].contains("non_finite.clip"));
     assert!(docs["check-gpu"].contains("scenes[].unmatched_example.a_rgba"));
     assert!(docs["scaling"].contains("update.walks[].overheads"));

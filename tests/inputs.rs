@@ -590,3 +590,42 @@ fn geographic_geotiffs_get_metres() {
         "not on the globe",
     );
 }
+
+#[test]
+fn pack_writes_a_pack_info_reads_and_bad_ones_are_clean_errors() {
+    let out = tmp("j.tcz");
+    let o = out.to_str().unwrap();
+    let jacksboro = "tests/data/jacksboro_16.png";
+    let (code, stdout, err) = cli(&["pack", jacksboro, "-o", o, "--max-error", "1", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(
+        (v["width"].as_u64(), v["levels"].as_u64()),
+        (Some(403), Some(9))
+    );
+    assert!(v["max_error_seen"].as_f64().unwrap() <= 1.0);
+    assert!(v["ratio"].as_f64().unwrap() > 6.0, "{v}");
+    let (code, stdout, err) = cli(&["info", o, "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let i: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(i["bytes"], v["bytes"]);
+    assert_eq!(i["format"], "tcz");
+    // A cut pack: exit 1, the file named, no panic; the good one is kept
+    // when a second pack fails before writing.
+    let bytes = std::fs::read(&out).unwrap();
+    let cut = tmp("cut.tcz");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let (code, _, err) = cli(&["info", cut.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("cut.tcz") && err.contains("past the end"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    for bad in [["--tile", "7"], ["--max-error", "inf"]] {
+        let (code, _, err) = cli(&["pack", jacksboro, "-o", o, bad[0], bad[1]]);
+        assert_eq!(code, 1, "{bad:?}: {err}");
+        assert!(err.contains(bad[0]), "{err}");
+    }
+    assert_eq!(std::fs::read(&out).unwrap(), bytes);
+}

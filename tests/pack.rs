@@ -183,3 +183,82 @@ fn a_damaged_tile_is_an_error_that_names_it() {
     // Every truncation is caught.
     assert!(seen_errors >= good.len(), "{seen_errors} of {cases}");
 }
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("terraclip-pack-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+#[test]
+fn a_pack_file_reads_back_what_was_written() {
+    use terraclip::pack::file;
+    let (map, lattice) = jacksboro();
+    let src = levels_of(&map);
+    let (packed, recon) = Packed::encode(&src, 1.0, 64, Some(lattice));
+    let path = tmp("j.tcz");
+    let bytes = file::write(
+        &path,
+        &packed,
+        map.cell_size,
+        "sinc-blackman:11",
+        "jacksboro",
+    )
+    .unwrap();
+    assert_eq!(bytes, std::fs::metadata(&path).unwrap().len());
+    let (header, back) = file::read(&path).unwrap();
+    assert_eq!(header.size(), [403, 344]);
+    assert_eq!(header.levels(), src.len());
+    assert_eq!((header.max_error, header.tile), (1.0, 64));
+    assert!(same_bits(&recon, &back.decode().unwrap()));
+}
+
+#[test]
+fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
+    use terraclip::pack::file;
+    let map = common::terrain(6, 90, 70);
+    let (packed, _) = Packed::encode(&levels_of(&map), 1.0, 32, None);
+    let path = tmp("good.tcz");
+    file::write(&path, &packed, [1.0; 2], "box", "test").unwrap();
+    let good = std::fs::read(&path).unwrap();
+    let header_len = u32::from_le_bytes(good[12..16].try_into().unwrap()) as usize;
+    let index = 16 + header_len;
+    let bad = tmp("bad.tcz");
+    let fails = |bytes: &[u8], expect: &str| {
+        std::fs::write(&bad, bytes).unwrap();
+        let e = file::read(&bad).unwrap_err().to_string();
+        assert!(e.starts_with(bad.to_str().unwrap()), "{e}");
+        assert!(e.contains(expect), "{expect:?} not in {e}");
+    };
+    // Every cut is an error (the last tile's end is the file's).
+    for n in (0..good.len()).step_by(37) {
+        fails(&good[..n], "");
+    }
+    let mut b = good.clone();
+    b[0] = b'X';
+    fails(&b, "not a terraclip pack");
+    let mut b = good.clone();
+    b[8] = 2;
+    fails(&b, "pack version 2; this build reads version 1");
+    // The first tile's length lies: past the end of the file, or short.
+    let mut b = good.clone();
+    b[index + 8..index + 12].copy_from_slice(&u32::MAX.to_le_bytes());
+    fails(&b, "level 0 tile (0, 0): 4294967295 bytes at offset");
+    let mut b = good.clone();
+    b[index + 8] -= 1;
+    fails(&b, "level 0 tile (0, 0): checksum mismatch");
+    // A flipped bit in a tile.
+    let mut b = good.clone();
+    let last = b.len() - 3;
+    b[last] ^= 0x10;
+    fails(&b, "checksum mismatch");
+    // A header whose levels do not halve.
+    let text = String::from_utf8(good[16..index].to_vec()).unwrap();
+    let wrong = text.replacen("\"width\":45", "\"width\":44", 1);
+    assert_ne!(wrong, text);
+    let mut b = good[..12].to_vec();
+    b.extend_from_slice(&(wrong.len() as u32).to_le_bytes());
+    b.extend_from_slice(wrong.as_bytes());
+    b.extend_from_slice(&good[index..]);
+    fails(&b, "not the half of level 0");
+}

@@ -2,6 +2,7 @@
 
 use serde_json::json;
 use std::path::PathBuf;
+use terraclip::pack::file;
 use terraclip::terrain::Heightmap;
 
 #[derive(clap::Args, Debug)]
@@ -13,17 +14,18 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
+    if is_pack(&a.heightmap) {
+        return pack_info(a);
+    }
     let h = Heightmap::load(&a.heightmap)?;
     let (min, max) = h.min_max();
-    if a.json {
-        let v = json!({
-            "width": h.width(), "height": h.height(), "min": min, "max": max,
-            "nodata_count": h.nodata_count(), "format": h.format,
-            "cell_size": h.cell_size, "cell_size_m": h.cell_size, "crs": h.crs,
-        });
-        println!("{v}");
-    } else {
-        println!(
+    let v = json!({
+        "width": h.width(), "height": h.height(), "min": min, "max": max,
+        "nodata_count": h.nodata_count(), "format": h.format,
+        "cell_size": h.cell_size, "cell_size_m": h.cell_size, "crs": h.crs,
+    });
+    super::report(a.json, v, || {
+        format!(
             "{}: {}×{} {}, heights {min}..{max} m, {} no-data, cell {:?} m, CRS {}",
             a.heightmap.display(),
             h.width(),
@@ -32,7 +34,41 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             h.nodata_count(),
             h.cell_size,
             h.crs.as_deref().unwrap_or("not given")
-        );
-    }
+        )
+    });
+    Ok(())
+}
+
+/// Whether the file starts with a pack's magic.
+fn is_pack(path: &std::path::Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|_| file::is_pack(&head))
+}
+
+/// What a pack holds: its header, checked with every tile.
+fn pack_info(a: &Args) -> anyhow::Result<()> {
+    let (h, packed) = file::read(&a.heightmap)?;
+    let bytes = std::fs::metadata(&a.heightmap)?.len();
+    let [w, hh] = h.size();
+    let tiles: usize = packed.levels.iter().map(|l| l.tiles.len()).sum();
+    let v = json!({
+        "width": w, "height": hh, "format": "tcz", "levels": h.levels(),
+        "max_error": h.max_error, "tile": h.tile, "bytes": bytes, "tiles": tiles,
+        "cell_size": h.cell_size, "cell_size_m": h.cell_size, "filter": h.filter,
+        "source": h.source,
+    });
+    super::report(a.json, v, || {
+        format!(
+            "{}: pack of {w}×{hh}, {} levels, max error {} m, {tiles} tiles of {}², {bytes} bytes, from {}",
+            a.heightmap.display(),
+            h.levels(),
+            h.max_error,
+            h.tile,
+            h.source
+        )
+    });
     Ok(())
 }

@@ -12,6 +12,7 @@ pub mod fly;
 pub mod golden;
 pub mod height;
 pub mod info;
+pub mod pack;
 pub mod render;
 pub mod scaling;
 pub mod tradeoff;
@@ -81,6 +82,16 @@ impl SceneArgs {
             terraclip::studies::views::frame_terrain(&mut s)?;
         }
         Ok(s)
+    }
+}
+
+/// Prints `value` as one JSON line with `--json`, else the sentence `text`
+/// makes: every command reports this way.
+pub fn report(json: bool, value: serde_json::Value, text: impl FnOnce() -> String) {
+    if json {
+        println!("{value}");
+    } else {
+        println!("{}", text());
     }
 }
 

@@ -28,8 +28,10 @@ use constriction::stream::stack::DefaultAnsCoder;
 use constriction::stream::{Decode, Encode};
 use rayon::prelude::*;
 
-/// How a level's samples are quantised.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// How a level's samples are quantised (the pack header writes it as a
+/// JSON object tagged by `kind`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum Quant {
     /// Bounded error: residuals in steps of 2·`max_error`, so every
     /// decoded sample is within `max_error` of the input.

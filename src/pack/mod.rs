@@ -1,9 +1,10 @@
 //! Terrain packs: LH04's compressed residual pyramid, tiled so a clipmap
 //! update can decode only what it uncovers. [`codec`] predicts, quantises
 //! and entropy-codes; [`model`] is the family of entropy models it codes
-//! with.
+//! with; [`file`] is the `.tcz` file.
 
 pub mod codec;
+pub mod file;
 pub mod model;
 
 pub use codec::{Lattice, Packed, PackedLevel, Quant, Tile, TileError};

@@ -64,6 +64,16 @@ impl Filter {
         }
     }
 
+    /// The name [`Filter::parse`] reads back: `point`, `box`,
+    /// `sinc-blackman:N`.
+    pub fn name(&self) -> String {
+        match *self {
+            Filter::Point => "point".into(),
+            Filter::Box => "box".into(),
+            Filter::SincBlackman { taps } => format!("sinc-blackman:{taps}"),
+        }
+    }
+
     /// Checks the settings; the message says what is wrong.
     pub fn validate(&self) -> Result<(), String> {
         match *self {

@@ -660,7 +660,7 @@ fn anon_huge_bytes() -> Option<u64> {
 }
 
 /// Peak resident memory (VmHWM), where the system reports it.
-fn peak_rss() -> Option<u64> {
+pub fn peak_rss() -> Option<u64> {
     proc_kb("/proc/self/status", "VmHWM:")
 }
 

@@ -1,0 +1,238 @@
+//! The `.tcz` file: a versioned header that says what the pack holds, an
+//! index of every tile, then the tiles.
+//!
+//! ```text
+//! "TCZPACK\0"             8 bytes, the magic
+//! version                 u32 LE (1)
+//! header length           u32 LE
+//! header                  JSON: map size, cell size, filter, bound, tile, levels
+//! index                   per level (finest first), per tile (row-major):
+//!                         offset u64 LE (from the file's start), length u32 LE,
+//!                         CRC-32 of the tile's bytes u32 LE
+//! tiles
+//! ```
+//!
+//! JSON keeps the header readable with any tool; the index is binary so a
+//! reader finds any tile without parsing the others, and each tile's CRC
+//! turns a flipped bit into an error that names the tile instead of wrong
+//! heights.
+
+use super::codec::{Packed, PackedLevel, Quant};
+use crate::error::{write_atomic, Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The first bytes of every pack.
+pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
+/// The version this build writes and reads.
+pub const VERSION: u32 = 1;
+/// Bytes of one index entry.
+const ENTRY: usize = 16;
+
+/// One level in the header.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+struct LevelSpec {
+    width: usize,
+    height: usize,
+    quant: Quant,
+}
+
+/// What a pack holds, as its header says.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Header {
+    /// Metres per cell of level 0, x and y.
+    pub cell_size: [f64; 2],
+    /// The filter the pyramid's coarser levels were made with.
+    pub filter: String,
+    /// Every sample of every level is within this of that pyramid (metres;
+    /// 0 is lossless).
+    pub max_error: f64,
+    /// Tile side in samples.
+    pub tile: usize,
+    /// What was packed (a file name, or the scene's procedural terrain).
+    pub source: String,
+    levels: Vec<LevelSpec>,
+}
+
+impl Header {
+    /// Level 0's width and height.
+    pub fn size(&self) -> [usize; 2] {
+        self.levels.first().map_or([0, 0], |l| [l.width, l.height])
+    }
+    /// Levels in the pack.
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+}
+
+/// Writes `packed` to `path` (through a temporary file and a rename).
+pub fn write(
+    path: &Path,
+    packed: &Packed,
+    cell_size: [f64; 2],
+    filter: &str,
+    source: &str,
+) -> Result<u64> {
+    let header = Header {
+        cell_size,
+        filter: filter.to_string(),
+        max_error: packed.max_error,
+        tile: packed.tile,
+        source: source.to_string(),
+        levels: packed
+            .levels
+            .iter()
+            .map(|l| LevelSpec {
+                width: l.width,
+                height: l.height,
+                quant: l.quant,
+            })
+            .collect(),
+    };
+    let json = serde_json::to_vec(&header).map_err(|e| Error::value("pack", e.to_string()))?;
+    let tiles: Vec<&Vec<u8>> = packed.levels.iter().flat_map(|l| &l.tiles).collect();
+    let start = 16 + json.len() + ENTRY * tiles.len();
+    let mut out = Vec::with_capacity(start + tiles.iter().map(|t| t.len()).sum::<usize>());
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&json);
+    let mut at = start as u64;
+    for t in &tiles {
+        out.extend_from_slice(&at.to_le_bytes());
+        out.extend_from_slice(&(t.len() as u32).to_le_bytes());
+        out.extend_from_slice(&crc32fast::hash(t).to_le_bytes());
+        at += t.len() as u64;
+    }
+    for t in &tiles {
+        out.extend_from_slice(t);
+    }
+    write_atomic(path, &out)?;
+    Ok(out.len() as u64)
+}
+
+/// Whether `bytes` start like a pack.
+pub fn is_pack(bytes: &[u8]) -> bool {
+    bytes.starts_with(MAGIC)
+}
+
+/// Reads the pack at `path`: its header, and every tile checked against
+/// its index entry and CRC. Errors name the file, and the tile where one
+/// is at fault.
+pub fn read(path: &Path) -> Result<(Header, Packed)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    parse(&bytes).map_err(|r| Error::file(path, r))
+}
+
+fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
+    if !is_pack(bytes) {
+        return Err("not a terraclip pack (no TCZPACK magic)".into());
+    }
+    if bytes.len() < 16 {
+        return Err(format!("{} bytes: the file is cut short", bytes.len()));
+    }
+    let u32_at =
+        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let version = u32_at(8);
+    if version != VERSION {
+        return Err(format!(
+            "pack version {version}; this build reads version {VERSION}"
+        ));
+    }
+    let len = u32_at(12) as usize;
+    let json = bytes
+        .get(16..16 + len)
+        .ok_or_else(|| format!("header of {len} bytes runs past the end of the file"))?;
+    let header: Header =
+        serde_json::from_slice(json).map_err(|e| format!("header is not valid: {e}"))?;
+    check_header(&header)?;
+    let mut at = 16 + len;
+    let mut levels = Vec::with_capacity(header.levels.len());
+    for (l, spec) in header.levels.iter().enumerate() {
+        let (nx, ny) = (
+            spec.width.div_ceil(header.tile),
+            spec.height.div_ceil(header.tile),
+        );
+        let mut tiles = Vec::with_capacity(nx * ny);
+        for t in 0..nx * ny {
+            let name = || format!("level {l} tile ({}, {})", t % nx, t / nx);
+            let entry = bytes
+                .get(at..at + ENTRY)
+                .ok_or_else(|| format!("{}: the index is cut short", name()))?;
+            at += ENTRY;
+            let off = u64::from_le_bytes(entry[..8].try_into().expect("8 bytes")) as usize;
+            let n = u32::from_le_bytes(entry[8..12].try_into().expect("4 bytes")) as usize;
+            let crc = u32::from_le_bytes(entry[12..16].try_into().expect("4 bytes"));
+            let tile = off
+                .checked_add(n)
+                .and_then(|end| bytes.get(off..end))
+                .ok_or_else(|| {
+                    format!(
+                        "{}: {n} bytes at offset {off} run past the end of the file ({} bytes)",
+                        name(),
+                        bytes.len()
+                    )
+                })?;
+            if crc32fast::hash(tile) != crc {
+                return Err(format!(
+                    "{}: checksum mismatch (the tile is damaged)",
+                    name()
+                ));
+            }
+            tiles.push(tile.to_vec());
+        }
+        levels.push(PackedLevel {
+            width: spec.width,
+            height: spec.height,
+            quant: spec.quant,
+            tiles,
+        });
+    }
+    let packed = Packed {
+        tile: header.tile,
+        max_error: header.max_error,
+        levels,
+    };
+    Ok((header, packed))
+}
+
+/// Sizes that add up: each level the vertex-centred half of the one
+/// before, a tile size a reader can hold, finite cell sizes and bound.
+fn check_header(h: &Header) -> std::result::Result<(), String> {
+    if h.levels.is_empty() {
+        return Err("the header lists no level".into());
+    }
+    if !(2..=4096).contains(&h.tile) || h.tile % 2 != 0 {
+        return Err(format!(
+            "tile size {} is not even and within 2..=4096",
+            h.tile
+        ));
+    }
+    if !(h.max_error.is_finite() && h.max_error >= 0.0) {
+        return Err(format!("max error {} is not finite and ≥ 0", h.max_error));
+    }
+    if !h.cell_size.iter().all(|c| c.is_finite() && *c > 0.0) {
+        return Err(format!(
+            "cell size {:?} is not finite and positive",
+            h.cell_size
+        ));
+    }
+    let [w, hh] = [h.levels[0].width, h.levels[0].height];
+    crate::terrain::check_dimensions(w as u64, hh as u64)?;
+    for (l, pair) in h.levels.windows(2).enumerate() {
+        let want = ((pair[0].width - 1) / 2 + 1, (pair[0].height - 1) / 2 + 1);
+        if (pair[1].width, pair[1].height) != want {
+            return Err(format!(
+                "level {} is {}×{}, not the half of level {l} ({}×{})",
+                l + 1,
+                pair[1].width,
+                pair[1].height,
+                want.0,
+                want.1
+            ));
+        }
+    }
+    Ok(())
+}
