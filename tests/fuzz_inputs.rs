@@ -1,5 +1,6 @@
 //! Malformed input, ≥ 10,000 cases in one bounded run: valid PNG (8 and
-//! 16 bit), TGA, TIFF (f32, u16), ASCII-grid, raw f32 + JSON sidecar files
+//! 16 bit), TGA, TIFF (f32, u16), ASCII-grid, raw f32 + JSON sidecar files,
+//! packs
 //! and scene files are truncated, bit-flipped, given absurd header sizes
 //! (decompression bombs), NaN/inf/no-data patterns and wrong types. Every
 //! case must either load, or fail with a typed error that names the file;
@@ -298,7 +299,40 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("raw f32 + sidecar", 334),
     ("scene", 106),
     ("geographic tif", 617),
+    ("pack", 3),
 ];
+
+/// A lossy pack of a small procedural map.
+fn pack_seed(d: &Path) -> Vec<u8> {
+    let map = terraclip::terrain::procedural::Procedural::new(9, 40, 30)
+        .generate()
+        .unwrap();
+    let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
+    let (packed, _) = terraclip::pack::Packed::encode(&levels, 1.0, 16, None);
+    let p = d.join("seed.tcz");
+    terraclip::pack::file::write(&p, &packed, [10.0; 2], "sinc-blackman:11", "seed").unwrap();
+    std::fs::read(&p).unwrap()
+}
+
+/// Reads and decodes a pack: Ok(true) decoded (finite, the sizes the header
+/// says), Ok(false) a clean error naming the file, Err on a panic or an
+/// error that does not name it.
+fn pack_once(p: &Path) -> Result<bool, String> {
+    let r = std::panic::catch_unwind(|| terraclip::pack::file::read_levels(p));
+    match r {
+        Err(_) => Err(format!("panic on {}", p.display())),
+        Ok(Ok((h, levels))) => {
+            if levels.len() != h.levels()
+                || levels.iter().any(|l| l.data.iter().any(|v| !v.is_finite()))
+            {
+                return Err(format!("pack decoded badly: {h:?}"));
+            }
+            Ok(true)
+        }
+        Ok(Err(e)) if e.to_string().contains("case.tcz") => Ok(false),
+        Ok(Err(e)) => Err(format!("pack error does not name the file: {e}")),
+    }
+}
 
 #[test]
 fn ten_thousand_malformed_inputs_never_panic() {
@@ -402,6 +436,16 @@ fn ten_thousand_malformed_inputs_never_panic() {
     for _ in 0..1600 {
         std::fs::write(&p, mutate(&mut geo_rng, &geo_seed)).unwrap();
         record("geographic tif", load_once(&p));
+        cases += 1;
+    }
+    // Packs (1,000), on a generator of their own: cut, flipped and
+    // header-edited copies of a small lossy pack.
+    let mut pack_rng = Rng(0x7C2_5EED_0000_0001);
+    let pack_seed = pack_seed(&d);
+    let p = d.join("case.tcz");
+    for _ in 0..1000 {
+        std::fs::write(&p, mutate(&mut pack_rng, &pack_seed)).unwrap();
+        record("pack", pack_once(&p));
         cases += 1;
     }
     let secs = start.elapsed().as_secs_f64();

@@ -222,7 +222,7 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     file::write(&path, &packed, [1.0; 2], "box", "test").unwrap();
     let good = std::fs::read(&path).unwrap();
     let header_len = u32::from_le_bytes(good[12..16].try_into().unwrap()) as usize;
-    let index = 16 + header_len;
+    let index = 20 + header_len;
     let bad = tmp("bad.tcz");
     let fails = |bytes: &[u8], expect: &str| {
         std::fs::write(&bad, bytes).unwrap();
@@ -252,13 +252,14 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     let last = b.len() - 3;
     b[last] ^= 0x10;
     fails(&b, "checksum mismatch");
-    // A header whose levels do not halve.
-    let text = String::from_utf8(good[16..index].to_vec()).unwrap();
+    // A header edited: caught by its checksum; with the checksum redone,
+    // levels that do not halve.
+    let text = String::from_utf8(good[20..index].to_vec()).unwrap();
     let wrong = text.replacen("\"width\":45", "\"width\":44", 1);
     assert_ne!(wrong, text);
-    let mut b = good[..12].to_vec();
-    b.extend_from_slice(&(wrong.len() as u32).to_le_bytes());
-    b.extend_from_slice(wrong.as_bytes());
-    b.extend_from_slice(&good[index..]);
+    let mut b = good.clone();
+    b[20..index].copy_from_slice(wrong.as_bytes());
+    fails(&b, "header checksum mismatch");
+    b[16..20].copy_from_slice(&crc32fast::hash(wrong.as_bytes()).to_le_bytes());
     fails(&b, "not the half of level 0");
 }

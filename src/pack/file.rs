@@ -5,6 +5,7 @@
 //! "TCZPACK\0"             8 bytes, the magic
 //! version                 u32 LE (1)
 //! header length           u32 LE
+//! header CRC-32           u32 LE
 //! header                  JSON: map size, cell size, filter, bound, tile, levels
 //! index                   per level (finest first), per tile (row-major):
 //!                         offset u64 LE (from the file's start), length u32 LE,
@@ -19,6 +20,7 @@
 
 use super::codec::{Packed, PackedLevel, Quant};
 use crate::error::{write_atomic, Error, Result};
+use crate::pyramid::PyramidLevel;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -93,11 +95,12 @@ pub fn write(
     };
     let json = serde_json::to_vec(&header).map_err(|e| Error::value("pack", e.to_string()))?;
     let tiles: Vec<&Vec<u8>> = packed.levels.iter().flat_map(|l| &l.tiles).collect();
-    let start = 16 + json.len() + ENTRY * tiles.len();
+    let start = 20 + json.len() + ENTRY * tiles.len();
     let mut out = Vec::with_capacity(start + tiles.iter().map(|t| t.len()).sum::<usize>());
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&VERSION.to_le_bytes());
     out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&json).to_le_bytes());
     out.extend_from_slice(&json);
     let mut at = start as u64;
     for t in &tiles {
@@ -126,11 +129,21 @@ pub fn read(path: &Path) -> Result<(Header, Packed)> {
     parse(&bytes).map_err(|r| Error::file(path, r))
 }
 
+/// Reads the pack at `path` and decodes every level (finest first). Errors
+/// name the file, and the level and tile at fault.
+pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
+    let (header, packed) = read(path)?;
+    let levels = packed
+        .decode()
+        .map_err(|e| Error::file(path, e.to_string()))?;
+    Ok((header, levels))
+}
+
 fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
     if !is_pack(bytes) {
         return Err("not a terraclip pack (no TCZPACK magic)".into());
     }
-    if bytes.len() < 16 {
+    if bytes.len() < 20 {
         return Err(format!("{} bytes: the file is cut short", bytes.len()));
     }
     let u32_at =
@@ -143,12 +156,15 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
     }
     let len = u32_at(12) as usize;
     let json = bytes
-        .get(16..16 + len)
+        .get(20..20 + len)
         .ok_or_else(|| format!("header of {len} bytes runs past the end of the file"))?;
+    if crc32fast::hash(json) != u32_at(16) {
+        return Err("header checksum mismatch (the header is damaged)".into());
+    }
     let header: Header =
         serde_json::from_slice(json).map_err(|e| format!("header is not valid: {e}"))?;
     check_header(&header)?;
-    let mut at = 16 + len;
+    let mut at = 20 + len;
     let mut levels = Vec::with_capacity(header.levels.len());
     for (l, spec) in header.levels.iter().enumerate() {
         let (nx, ny) = (
@@ -189,6 +205,19 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
             quant: spec.quant,
             tiles,
         });
+    }
+    // The tiles end the file: anything after them is damage, not data.
+    let end = levels
+        .iter()
+        .flat_map(|l: &PackedLevel| &l.tiles)
+        .map(|t| t.len())
+        .sum::<usize>()
+        + at;
+    if end != bytes.len() {
+        return Err(format!(
+            "{} bytes, but the header, index and tiles take {end}",
+            bytes.len()
+        ));
     }
     let packed = Packed {
         tile: header.tile,
