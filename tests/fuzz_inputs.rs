@@ -427,26 +427,37 @@ fn ten_thousand_malformed_inputs_never_panic() {
         record("scene", scene_once(&text, &d));
         cases += 1;
     }
-    // GeoTIFFs with a GeoKey directory and a tie point (1,600), on a
-    // generator of their own so the kinds above keep their draws: mutated
-    // keys, model types, units, scales and latitudes.
-    let mut geo_rng = Rng(0x6E0_7EFF_5EED_0001);
-    let geo_seed = geotiff_seed(&d);
-    let p = d.join("case-geo.tif");
-    for _ in 0..1600 {
-        std::fs::write(&p, mutate(&mut geo_rng, &geo_seed)).unwrap();
-        record("geographic tif", load_once(&p));
-        cases += 1;
-    }
-    // Packs (1,000), on a generator of their own: cut, flipped and
-    // header-edited copies of a small lossy pack.
-    let mut pack_rng = Rng(0x7C2_5EED_0000_0001);
-    let pack_seed = pack_seed(&d);
-    let p = d.join("case.tcz");
-    for _ in 0..1000 {
-        std::fs::write(&p, mutate(&mut pack_rng, &pack_seed)).unwrap();
-        record("pack", pack_once(&p));
-        cases += 1;
+    // Kinds on generators of their own, so the kinds above keep their
+    // draws: GeoTIFFs with a GeoKey directory and a tie point (1,600:
+    // mutated keys, model types, units, scales and latitudes), and packs
+    // (1,000: cut, flipped and header-edited copies of a small lossy one).
+    type Loader = fn(&Path) -> Result<bool, String>;
+    let own: [(&str, u64, Vec<u8>, &str, usize, Loader); 2] = [
+        (
+            "geographic tif",
+            0x6E0_7EFF_5EED_0001,
+            geotiff_seed(&d),
+            "case-geo.tif",
+            1600,
+            load_once,
+        ),
+        (
+            "pack",
+            0x7C2_5EED_0000_0001,
+            pack_seed(&d),
+            "case.tcz",
+            1000,
+            pack_once,
+        ),
+    ];
+    for (kind, seed, bytes, name, n, load) in own {
+        let mut own_rng = Rng(seed);
+        let p = d.join(name);
+        for _ in 0..n {
+            std::fs::write(&p, mutate(&mut own_rng, &bytes)).unwrap();
+            record(kind, load(&p));
+            cases += 1;
+        }
     }
     let secs = start.elapsed().as_secs_f64();
     println!(
