@@ -432,7 +432,9 @@ fn ten_thousand_malformed_inputs_never_panic() {
     // mutated keys, model types, units, scales and latitudes), and packs
     // (1,000: cut, flipped and header-edited copies of a small lossy one).
     type Loader = fn(&Path) -> Result<bool, String>;
-    let own: [(&str, u64, Vec<u8>, &str, usize, Loader); 2] = [
+    /// Kind, generator seed, seed file, case file name, cases, loader.
+    type Own<'a> = (&'a str, u64, Vec<u8>, &'a str, usize, Loader);
+    let own: [Own; 2] = [
         (
             "geographic tif",
             0x6E0_7EFF_5EED_0001,
