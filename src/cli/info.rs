@@ -14,7 +14,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    if is_pack(&a.heightmap) {
+    if file::is_pack_file(&a.heightmap) {
         return pack_info(a);
     }
     let h = Heightmap::load(&a.heightmap)?;
@@ -37,15 +37,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         )
     });
     Ok(())
-}
-
-/// Whether the file starts with a pack's magic.
-fn is_pack(path: &std::path::Path) -> bool {
-    use std::io::Read;
-    let mut head = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|_| file::is_pack(&head))
 }
 
 /// What a pack holds: its header, checked with every tile.

@@ -20,7 +20,7 @@
 
 use super::codec::{Packed, PackedLevel, Quant};
 use crate::error::{write_atomic, Error, Result};
-use crate::pyramid::PyramidLevel;
+use crate::pyramid::{Filter, PyramidLevel};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -116,6 +116,16 @@ pub fn write(
     Ok(out.len() as u64)
 }
 
+/// Whether the file at `path` starts like a pack (false if unreadable:
+/// the reader it is then given reports why).
+pub fn is_pack_file(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|_| is_pack(&head))
+}
+
 /// Whether `bytes` start like a pack.
 pub fn is_pack(bytes: &[u8]) -> bool {
     bytes.starts_with(MAGIC)
@@ -137,6 +147,39 @@ pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
         .decode()
         .map_err(|e| Error::file(path, e.to_string()))?;
     Ok((header, levels))
+}
+
+/// A scene's terrain as a decoded pack, when its `file` is one; `None` for
+/// any other terrain. The pack is decoded whole for now.
+pub fn for_terrain(spec: &crate::scene::Terrain, base_dir: &Path) -> Result<Option<PackTerrain>> {
+    let Some(f) = &spec.file else {
+        return Ok(None);
+    };
+    let path = base_dir.join(f);
+    if !is_pack_file(&path) {
+        return Ok(None);
+    }
+    let (header, levels) = read_levels(&path)?;
+    let filter = Filter::parse(&header.filter).map_err(|r| Error::file(&path, r))?;
+    let cell = spec
+        .cell_size
+        .as_ref()
+        .map_or(header.cell_size, |c| c.pair());
+    Ok(Some(PackTerrain {
+        levels,
+        cell_size: cell,
+        filter,
+    }))
+}
+
+/// A scene's terrain read from a pack ([`for_terrain`]).
+pub struct PackTerrain {
+    /// The decoded levels, finest first.
+    pub levels: Vec<PyramidLevel>,
+    /// Metres per cell of level 0 (the scene's override, else the pack's).
+    pub cell_size: [f64; 2],
+    /// The filter the levels were made with.
+    pub filter: Filter,
 }
 
 fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {

@@ -314,6 +314,18 @@ impl Pyramid {
         p
     }
 
+    /// A pyramid of levels made elsewhere (decoded from a pack), finest
+    /// first, each the vertex-centred half of the one before.
+    pub fn from_levels(levels: Vec<PyramidLevel>, filter: Filter) -> Self {
+        Pyramid {
+            filter,
+            ranges: levels.iter().map(RangeGrid::new).collect(),
+            levels,
+            lazy: None,
+            progress: None,
+        }
+    }
+
     /// Bounds on the heights that level `l` gives, edge-clamped, at level
     /// texels [x0, x1] × [y0, y1]. They come from the tiles the rectangle
     /// touches, so their cost depends on the rectangle, not on the map: a

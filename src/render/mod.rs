@@ -226,10 +226,31 @@ impl Session {
     }
 
     fn build(scene: &Scene, passes: &mut Passes) -> Result<Session> {
-        let filter = scene.pyramid.filter;
+        let mut filter = scene.pyramid.filter;
         let effects = Effects::from_list(&scene.effects).map_err(|r| Error::value("effects", r))?;
         let cfg = LodConfig::from_spec(&scene.lod, effects.morph)?;
-        let (pyramid, world) = if scene.pyramid.lazy {
+        let packed = passes.time("terrain", || {
+            crate::pack::file::for_terrain(&scene.terrain, &scene.base_dir)
+        })?;
+        let (pyramid, world) = if let Some(crate::pack::file::PackTerrain {
+            mut levels,
+            cell_size,
+            filter: made_with,
+        }) = packed
+        {
+            if scene.pyramid.lazy {
+                return Err(Error::value(
+                    "pyramid.lazy",
+                    "a pack is decoded whole for now; set lazy = false",
+                ));
+            }
+            let count = cfg.pyramid_levels(levels[0].width, levels[0].height);
+            levels.truncate(count.max(1));
+            let world = WorldMap::for_terrain(&scene.terrain, cell_size);
+            // The pack's levels were made with its own filter.
+            filter = made_with;
+            (Pyramid::from_levels(levels, made_with), world)
+        } else if scene.pyramid.lazy {
             let (base, world) = passes.time("terrain", || {
                 LazyBase::for_terrain(&scene.terrain, &scene.base_dir)
             })?;

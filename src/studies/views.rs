@@ -129,10 +129,20 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
 /// line without a camera (`render --heightmap`), whose scene placed its
 /// camera, far plane and fog for another terrain.
 pub fn frame_terrain(scene: &mut Scene) -> Result<()> {
-    let h = crate::terrain::load(&scene.terrain, &scene.base_dir).map_err(|e| scene.named(e))?;
-    let world = WorldMap::for_terrain(&scene.terrain, h.cell_size);
-    let (min, max) = h.min_max();
-    let (w, r) = ((h.width() - 1) as f64, (h.height() - 1) as f64);
+    let named = |e| scene.named(e);
+    let (cell, [w, r], (min, max)) =
+        match crate::pack::file::for_terrain(&scene.terrain, &scene.base_dir).map_err(named)? {
+            Some(p) => {
+                let l = &p.levels[0];
+                (p.cell_size, [l.width, l.height], (l.min, l.max))
+            }
+            None => {
+                let h = crate::terrain::load(&scene.terrain, &scene.base_dir).map_err(named)?;
+                (h.cell_size, [h.width(), h.height()], h.min_max())
+            }
+        };
+    let world = WorldMap::for_terrain(&scene.terrain, cell);
+    let (w, r) = ((w - 1) as f64, (r - 1) as f64);
     let (lo, hi) = world.aabb(0.0, 0.0, w, r, min as f64, max as f64);
     let size = hi - lo;
     let span = size.x.max(size.y);
