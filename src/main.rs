@@ -45,6 +45,9 @@ enum Cmd {
     /// Pack a heightmap (or a scene's terrain) into a compressed residual
     /// pyramid, every sample of every level within --max-error metres.
     Pack(cli::pack::Args),
+    /// Write a pack's level (or a window of it) back out as .f32 + sidecar,
+    /// .tif or 16-bit .png + sidecar.
+    Unpack(cli::unpack::Args),
     /// Count crack pixels (background enclosed by terrain that brute force
     /// covers) from random views, for one or more LOD schemes.
     Cracks(cli::cracks::Args),
@@ -71,6 +74,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Scaling(a)) => cli::scaling::run(&a),
         Some(Cmd::Info(a)) => cli::info::run(&a),
         Some(Cmd::Pack(a)) => cli::pack::run(&a),
+        Some(Cmd::Unpack(a)) => cli::unpack::run(&a),
         Some(Cmd::Cracks(a)) => cli::cracks::run(&a),
         Some(Cmd::Tradeoff(a)) => cli::tradeoff::run(&a),
         Some(Cmd::Fly(a)) => cli::fly::run(&a),

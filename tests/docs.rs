@@ -175,6 +175,7 @@ fn every_json_key_is_in_docs_cli_md() {
     let (png, diagram) = (s(&tmp("r.png")), s(&tmp("d.png")));
     let tradeoff_out = s(&tmp("tradeoff"));
     let pack = s(&tmp("j.tcz"));
+    let unpacked = s(&tmp("u.png"));
     let jacksboro = "tests/data/jacksboro_16.png";
     // Each command's runs: together they print every key the page lists.
     let runs: Vec<(&str, Vec<Vec<&str>>)> = vec![
@@ -277,6 +278,19 @@ fn every_json_key_is_in_docs_cli_md() {
         ),
         ("info", vec![vec!["info", jacksboro], vec!["info", &pack]]),
         (
+            "unpack",
+            vec![vec![
+                "unpack",
+                &pack,
+                "--level",
+                "1",
+                "--window",
+                "2,3,40,30",
+                "-o",
+                &unpacked,
+            ]],
+        ),
+        (
             "diagram",
             vec![vec!["diagram", "--size", "64", "-o", &diagram]],
         ),
@@ -332,7 +346,7 @@ fn every_json_key_is_in_docs_cli_md() {
 #[test]
 fn the_page_lists_the_keys_of_every_command() {
     let docs = documented();
-    assert_eq!(docs.len(), 12, "{:?}", docs.keys().collect::<Vec<_>>());
+    assert_eq!(docs.len(), 13, "{:?}", docs.keys().collect::<Vec<_>>());
     assert!(docs["render"].contains("non_finite.clip"));
     assert!(docs["check-gpu"].contains("scenes[].unmatched_example.a_rgba"));
     assert!(docs["scaling"].contains("update.walks[].overheads"));

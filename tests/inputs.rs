@@ -628,4 +628,34 @@ fn pack_writes_a_pack_info_reads_and_bad_ones_are_clean_errors() {
         assert!(err.contains(bad[0]), "{err}");
     }
     assert_eq!(std::fs::read(&out).unwrap(), bytes);
+    // unpack: level 0 back to raw f32, within the bound of the source; bad
+    // levels, windows and formats are clean errors.
+    let raw = tmp("u.f32");
+    let (code, _, err) = cli(&["unpack", o, "-o", raw.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let (a, b) = (
+        terraclip::terrain::Heightmap::load(&raw).unwrap(),
+        terraclip::terrain::Heightmap::load(std::path::Path::new(jacksboro)).unwrap(),
+    );
+    let worst = a
+        .data()
+        .iter()
+        .zip(b.data())
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max);
+    assert!(worst <= 1.0 && worst > 0.5, "{worst}");
+    for (bad, says) in [
+        (vec!["--level", "9"], "does not exist"),
+        (vec!["--window", "400,0,10,10"], "leaves level 0"),
+        (vec!["-o", "x.bmp"], "write .f32"),
+    ] {
+        let mut args = vec!["unpack", o];
+        if bad[0] != "-o" {
+            args.extend(["-o", raw.to_str().unwrap()]);
+        }
+        args.extend(bad);
+        let (code, _, err) = cli(&args);
+        assert_eq!(code, 1, "{err}");
+        assert!(err.contains(says) && !err.contains("panicked"), "{err}");
+    }
 }

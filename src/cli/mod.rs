@@ -16,6 +16,7 @@ pub mod pack;
 pub mod render;
 pub mod scaling;
 pub mod tradeoff;
+pub mod unpack;
 
 use std::path::PathBuf;
 use terraclip::scene::{Effect, LodScheme, Overrides, Scene};

@@ -63,6 +63,10 @@ impl Header {
     pub fn size(&self) -> [usize; 2] {
         self.levels.first().map_or([0, 0], |l| [l.width, l.height])
     }
+    /// How level `l` is quantised.
+    pub fn level_quant(&self, l: usize) -> Option<Quant> {
+        self.levels.get(l).map(|s| s.quant)
+    }
     /// Levels in the pack.
     pub fn levels(&self) -> usize {
         self.levels.len()

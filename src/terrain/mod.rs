@@ -16,6 +16,7 @@ mod raw;
 mod sidecar;
 mod tiff_file;
 pub mod world;
+pub mod write;
 
 use crate::error::{Error, Result};
 use std::path::Path;

@@ -1,0 +1,100 @@
+//! `terraclip unpack`: a pack's samples written back out, so users get
+//! their data back and anyone can check the bound with their own tools.
+
+use serde_json::json;
+use std::path::PathBuf;
+use terraclip::pack::{file, Quant};
+use terraclip::terrain::write::{self, Grid};
+use terraclip::terrain::Lattice;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    pub pack: PathBuf,
+    /// The level to write (0, the finest, by default).
+    #[arg(long, default_value_t = 0)]
+    pub level: usize,
+    /// A window X,Y,W,H of the level's samples (the whole level if absent).
+    #[arg(long, value_parser = parse_window)]
+    pub window: Option<[usize; 4]>,
+    /// `.f32` (raw, with a JSON sidecar), `.tif` (f32 GeoTIFF) or `.png`
+    /// (16-bit, with a sidecar).
+    #[arg(short, long)]
+    pub out: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_window(s: &str) -> Result<[usize; 4], String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|p| p.trim().parse::<usize>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    let w: [usize; 4] = v
+        .try_into()
+        .map_err(|v: Vec<usize>| format!("need X,Y,W,H, got {} numbers", v.len()))?;
+    if w[2] == 0 || w[3] == 0 {
+        return Err("the window must be at least 1×1".into());
+    }
+    Ok(w)
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let (header, levels) = file::read_levels(&a.pack)?;
+    let Some(lv) = levels.get(a.level) else {
+        anyhow::bail!(
+            "{}: --level {} does not exist (the pack has levels 0..={})",
+            a.pack.display(),
+            a.level,
+            levels.len() - 1
+        );
+    };
+    let [x, y, w, h] = a.window.unwrap_or([0, 0, lv.width, lv.height]);
+    if x + w > lv.width || y + h > lv.height {
+        anyhow::bail!(
+            "--window {x},{y},{w},{h} leaves level {} ({}×{})",
+            a.level,
+            lv.width,
+            lv.height
+        );
+    }
+    let crop = |v: &[f32]| -> Vec<f32> {
+        (y..y + h)
+            .flat_map(|r| v[r * lv.width + x..r * lv.width + x + w].iter().copied())
+            .collect()
+    };
+    let data = crop(&lv.data);
+    let nodata: Vec<bool> = (y..y + h)
+        .flat_map(|r| {
+            lv.nodata[r * lv.width + x..r * lv.width + x + w]
+                .iter()
+                .copied()
+        })
+        .collect();
+    let spacing = (1u64 << a.level.min(62)) as f64;
+    let grid = Grid {
+        width: w,
+        height: h,
+        data: &data,
+        nodata: &nodata,
+        cell_size: header.cell_size.map(|c| c * spacing),
+    };
+    let lattice = match header.level_quant(a.level) {
+        Some(Quant::Lattice { offset, scale }) => Some(Lattice { offset, scale }),
+        _ => None,
+    };
+    let written = write::write(&a.out, &grid, lattice)?;
+    let v = json!({
+        "output": a.out, "level": a.level, "window": [x, y, w, h],
+        "width": w, "height": h, "cell_size_m": grid.cell_size,
+        "max_error": header.max_error, "sidecar": written.sidecar,
+        "png_step_m": written.step_m, "png_error_m": written.max_error_m,
+    });
+    let out = a.out.display();
+    super::report(a.json, v, || {
+        format!(
+            "wrote {out}: level {} window {x},{y} {w}×{h} (pack bound {} m)",
+            a.level, header.max_error
+        )
+    });
+    Ok(())
+}
