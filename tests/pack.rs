@@ -211,6 +211,10 @@ fn a_pack_file_reads_back_what_was_written() {
     assert_eq!(header.levels(), src.len());
     assert_eq!((header.max_error, header.tile), (1.0, 64));
     assert!(same_bits(&recon, &back.decode().unwrap()));
+    // The header alone gives the same header, and level 0's relief as
+    // decoded.
+    assert_eq!(file::read_header(&path).unwrap(), header);
+    assert_eq!(header.range(), [recon[0].min, recon[0].max]);
 }
 
 #[test]
@@ -293,8 +297,15 @@ fn a_lossless_pack_renders_bit_for_bit_as_the_map_itself() {
     let direct =
         terraclip::scene::Scene::load(&root.join("golden/jacksboro-oblique.toml")).unwrap();
     let opts = RenderOptions::default();
-    let (want, _) = render(&direct, &opts).unwrap();
+    let (want, direct_stats) = render(&direct, &opts).unwrap();
     let (got, stats) = render(&jacksboro_scene_from_pack(0.0, "j0.tcz"), &opts).unwrap();
+    // One "terrain" pass each: the pack's decode, or the map's load; a
+    // pack builds no pyramid.
+    let names = |s: &terraclip::RenderStats| -> Vec<String> {
+        s.passes.iter().map(|p| p.name.clone()).take(2).collect()
+    };
+    assert_eq!(names(&direct_stats), ["terrain", "pyramid"]);
+    assert_eq!(names(&stats), ["terrain", "lod"]);
     assert!(stats.triangles > 1000);
     assert_eq!(got.rgba, want.rgba);
     assert!(got

@@ -168,6 +168,9 @@ pub struct PackedLevel {
     pub height: usize,
     /// How the level is quantised.
     pub quant: Quant,
+    /// The least and greatest valid height it decodes to, so a reader
+    /// learns the relief from the header alone.
+    pub range: [f32; 2],
     /// The coded tiles, row-major.
     pub tiles: Vec<Vec<u8>>,
 }
@@ -598,24 +601,14 @@ fn decode_tile(
 }
 
 fn level_of(width: usize, height: usize, data: Vec<f32>, nodata: Vec<bool>) -> PyramidLevel {
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for (&v, &nd) in data.iter().zip(&nodata) {
-        if !nd {
-            lo = lo.min(v);
-            hi = hi.max(v);
-        }
-    }
-    if lo > hi {
-        (lo, hi) = (data[0], data[0]);
-    }
-    PyramidLevel {
+    crate::pyramid::with_range(PyramidLevel {
         width,
         height,
         data,
         nodata,
-        min: lo,
-        max: hi,
-    }
+        min: 0.0,
+        max: 0.0,
+    })
 }
 
 /// The quantisation of a level: bounded error when `max_error` > 0;
@@ -675,13 +668,15 @@ impl Packed {
                 }
                 bytes.push(b);
             }
-            recon.push(level_of(src.width, src.height, data, src.nodata.clone()));
+            let level = level_of(src.width, src.height, data, src.nodata.clone());
             packed.push(PackedLevel {
                 width: src.width,
                 height: src.height,
                 quant,
+                range: [level.min, level.max],
                 tiles: bytes,
             });
+            recon.push(level);
         }
         packed.reverse();
         recon.reverse();

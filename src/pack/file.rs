@@ -22,7 +22,7 @@ use super::codec::{Packed, PackedLevel, Quant};
 use crate::error::{write_atomic, Error, Result};
 use crate::pyramid::{Filter, PyramidLevel};
 use serde::{Deserialize, Serialize};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The first bytes of every pack.
 pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
@@ -38,6 +38,7 @@ struct LevelSpec {
     width: usize,
     height: usize,
     quant: Quant,
+    range: [f32; 2],
 }
 
 /// What a pack holds, as its header says.
@@ -67,6 +68,10 @@ impl Header {
     pub fn level_quant(&self, l: usize) -> Option<Quant> {
         self.levels.get(l).map(|s| s.quant)
     }
+    /// Level 0's least and greatest valid height, as decoded.
+    pub fn range(&self) -> [f32; 2] {
+        self.levels.first().map_or([0.0, 0.0], |l| l.range)
+    }
     /// Levels in the pack.
     pub fn levels(&self) -> usize {
         self.levels.len()
@@ -94,6 +99,7 @@ pub fn write(
                 width: l.width,
                 height: l.height,
                 quant: l.quant,
+                range: l.range,
             })
             .collect(),
     };
@@ -143,6 +149,21 @@ pub fn read(path: &Path) -> Result<(Header, Packed)> {
     parse(&bytes).map_err(|r| Error::file(path, r))
 }
 
+/// Reads only the header of the pack at `path` (checked, but not the
+/// tiles): what a caller needs to know of a pack without decoding it.
+pub fn read_header(path: &Path) -> Result<Header> {
+    use std::io::Read;
+    let io = |e| Error::io(path, e);
+    let mut f = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = Vec::with_capacity(20);
+    f.by_ref().take(20).read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() == 20 {
+        let len = u32::from_le_bytes([bytes[12], bytes[13], bytes[14], bytes[15]]);
+        f.take(len as u64).read_to_end(&mut bytes).map_err(io)?;
+    }
+    Ok(parse_header(&bytes).map_err(|r| Error::file(path, r))?.0)
+}
+
 /// Reads the pack at `path` and decodes every level (finest first). Errors
 /// name the file, and the level and tile at fault.
 pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
@@ -153,30 +174,33 @@ pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
     Ok((header, levels))
 }
 
-/// A scene's terrain as a decoded pack, when its `file` is one; `None` for
-/// any other terrain. The pack is decoded whole for now.
-pub fn for_terrain(spec: &crate::scene::Terrain, base_dir: &Path) -> Result<Option<PackTerrain>> {
-    let Some(f) = &spec.file else {
-        return Ok(None);
-    };
-    let path = base_dir.join(f);
-    if !is_pack_file(&path) {
-        return Ok(None);
-    }
-    let (header, levels) = read_levels(&path)?;
-    let filter = Filter::parse(&header.filter).map_err(|r| Error::file(&path, r))?;
-    let cell = spec
-        .cell_size
-        .as_ref()
-        .map_or(header.cell_size, |c| c.pair());
-    Ok(Some(PackTerrain {
-        levels,
-        cell_size: cell,
-        filter,
-    }))
+/// The pack a scene's terrain names, if its `file` is one (by its first
+/// bytes; cheap, so every session can ask).
+pub fn pack_path(spec: &crate::scene::Terrain, base_dir: &Path) -> Option<PathBuf> {
+    let path = base_dir.join(spec.file.as_ref()?);
+    is_pack_file(&path).then_some(path)
 }
 
-/// A scene's terrain read from a pack ([`for_terrain`]).
+/// The cell size a scene gets from a pack's header: its own override,
+/// else the pack's.
+pub fn cell_size(spec: &crate::scene::Terrain, header: &Header) -> [f64; 2] {
+    spec.cell_size
+        .as_ref()
+        .map_or(header.cell_size, |c| c.pair())
+}
+
+/// The pack at `path` decoded whole, as a scene's terrain.
+pub fn read_terrain(spec: &crate::scene::Terrain, path: &Path) -> Result<PackTerrain> {
+    let (header, levels) = read_levels(path)?;
+    let filter = Filter::parse(&header.filter).map_err(|r| Error::file(path, r))?;
+    Ok(PackTerrain {
+        levels,
+        cell_size: cell_size(spec, &header),
+        filter,
+    })
+}
+
+/// A scene's terrain read from a pack ([`read_terrain`]).
 pub struct PackTerrain {
     /// The decoded levels, finest first.
     pub levels: Vec<PyramidLevel>,
@@ -186,7 +210,8 @@ pub struct PackTerrain {
     pub filter: Filter,
 }
 
-fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
+/// The header and where the index starts, from the file's first bytes.
+fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize), String> {
     if !is_pack(bytes) {
         return Err("not a terraclip pack (no TCZPACK magic)".into());
     }
@@ -211,7 +236,11 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
     let header: Header =
         serde_json::from_slice(json).map_err(|e| format!("header is not valid: {e}"))?;
     check_header(&header)?;
-    let mut at = 20 + len;
+    Ok((header, 20 + len))
+}
+
+fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
+    let (header, mut at) = parse_header(bytes)?;
     let mut levels = Vec::with_capacity(header.levels.len());
     for (l, spec) in header.levels.iter().enumerate() {
         let (nx, ny) = (
@@ -250,6 +279,7 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
             width: spec.width,
             height: spec.height,
             quant: spec.quant,
+            range: spec.range,
             tiles,
         });
     }

@@ -362,7 +362,9 @@ impl Pyramid {
     }
 }
 
-fn with_range(mut l: PyramidLevel) -> PyramidLevel {
+/// `l` with its `min` and `max` set from its valid samples (the fill value
+/// where it has none).
+pub(crate) fn with_range(mut l: PyramidLevel) -> PyramidLevel {
     let (lo, hi) = l
         .data
         .par_iter()

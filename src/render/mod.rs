@@ -229,21 +229,21 @@ impl Session {
         let mut filter = scene.pyramid.filter;
         let effects = Effects::from_list(&scene.effects).map_err(|r| Error::value("effects", r))?;
         let cfg = LodConfig::from_spec(&scene.lod, effects.morph)?;
-        let packed = passes.time("terrain", || {
-            crate::pack::file::for_terrain(&scene.terrain, &scene.base_dir)
-        })?;
-        let (pyramid, world) = if let Some(crate::pack::file::PackTerrain {
-            mut levels,
-            cell_size,
-            filter: made_with,
-        }) = packed
-        {
+        let pack = crate::pack::file::pack_path(&scene.terrain, &scene.base_dir);
+        let (pyramid, world) = if let Some(path) = pack {
             if scene.pyramid.lazy {
                 return Err(Error::value(
                     "pyramid.lazy",
                     "a pack is decoded whole for now; set lazy = false",
                 ));
             }
+            let crate::pack::file::PackTerrain {
+                mut levels,
+                cell_size,
+                filter: made_with,
+            } = passes.time("terrain", || {
+                crate::pack::file::read_terrain(&scene.terrain, &path)
+            })?;
             let count = cfg.pyramid_levels(levels[0].width, levels[0].height);
             levels.truncate(count.max(1));
             let world = WorldMap::for_terrain(&scene.terrain, cell_size);

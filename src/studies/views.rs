@@ -130,15 +130,21 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
 /// camera, far plane and fog for another terrain.
 pub fn frame_terrain(scene: &mut Scene) -> Result<()> {
     let named = |e| scene.named(e);
-    let (cell, [w, r], (min, max)) =
-        match crate::pack::file::for_terrain(&scene.terrain, &scene.base_dir).map_err(named)? {
-            Some(p) => {
-                let l = &p.levels[0];
-                (p.cell_size, [l.width, l.height], (l.min, l.max))
+    // A pack's header holds its size and relief: nothing is decoded.
+    let (cell, [w, r], [min, max]) =
+        match crate::pack::file::pack_path(&scene.terrain, &scene.base_dir) {
+            Some(path) => {
+                let h = crate::pack::file::read_header(&path).map_err(named)?;
+                (
+                    crate::pack::file::cell_size(&scene.terrain, &h),
+                    h.size(),
+                    h.range(),
+                )
             }
             None => {
                 let h = crate::terrain::load(&scene.terrain, &scene.base_dir).map_err(named)?;
-                (h.cell_size, [h.width(), h.height()], h.min_max())
+                let (lo, hi) = h.min_max();
+                (h.cell_size, [h.width(), h.height()], [lo, hi])
             }
         };
     let world = WorldMap::for_terrain(&scene.terrain, cell);
