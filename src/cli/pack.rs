@@ -51,8 +51,10 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let t = Instant::now();
     let map = load(&a.input)?;
-    let pyramid = Pyramid::build(&map, a.filter, usize::MAX);
-    let (packed, recon) = Packed::encode(&pyramid.levels, a.max_error, a.tile, map.lattice);
+    let (w, h, cell_size, lattice) = (map.width(), map.height(), map.cell_size, map.lattice);
+    // The map becomes level 0 rather than being copied into it.
+    let pyramid = Pyramid::from_heightmap(map, a.filter, usize::MAX);
+    let (packed, recon) = Packed::encode(&pyramid.levels, a.max_error, a.tile, lattice);
     // The bound as achieved, over every sample of every level.
     let worst = pyramid
         .levels
@@ -62,22 +64,17 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         .map(|(&x, &y)| (x as f64 - y as f64).abs())
         .fold(0.0, f64::max);
     let source = a.input.display().to_string();
-    let bytes = file::write(&a.out, &packed, map.cell_size, &a.filter.name(), &source)?;
-    let ratio = (map.width() * map.height() * 4) as f64 / bytes as f64;
+    let bytes = file::write(&a.out, &packed, cell_size, &a.filter.name(), &source)?;
+    let ratio = (w * h * 4) as f64 / bytes as f64;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let v = json!({
-        "output": a.out, "width": map.width(), "height": map.height(),
+        "output": a.out, "width": w, "height": h,
         "levels": packed.levels.len(), "max_error": a.max_error,
         "max_error_seen": worst, "tile": packed.tile, "bytes": bytes,
         "ratio": ratio, "ms": ms,
         "peak_rss_bytes": terraclip::studies::scaling::peak_rss(),
     });
-    let (w, h, levels, out) = (
-        map.width(),
-        map.height(),
-        packed.levels.len(),
-        a.out.display(),
-    );
+    let (levels, out) = (packed.levels.len(), a.out.display());
     super::report(a.json, v, || {
         format!(
             "wrote {out}: {w}×{h}, {levels} levels, {bytes} bytes ({ratio:.2}× of f32), largest error {worst} m (bound {}), {ms:.0} ms",

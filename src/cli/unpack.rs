@@ -57,19 +57,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             lv.height
         );
     }
-    let crop = |v: &[f32]| -> Vec<f32> {
+    fn crop<T: Copy>(v: &[T], stride: usize, [x, y, w, h]: [usize; 4]) -> Vec<T> {
         (y..y + h)
-            .flat_map(|r| v[r * lv.width + x..r * lv.width + x + w].iter().copied())
+            .flat_map(|r| v[r * stride + x..r * stride + x + w].iter().copied())
             .collect()
-    };
-    let data = crop(&lv.data);
-    let nodata: Vec<bool> = (y..y + h)
-        .flat_map(|r| {
-            lv.nodata[r * lv.width + x..r * lv.width + x + w]
-                .iter()
-                .copied()
-        })
-        .collect();
+    }
+    let data = crop(&lv.data, lv.width, [x, y, w, h]);
+    let nodata = crop(&lv.nodata, lv.width, [x, y, w, h]);
     let spacing = (1u64 << a.level.min(62)) as f64;
     let grid = Grid {
         width: w,
