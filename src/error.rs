@@ -67,20 +67,7 @@ impl Error {
 /// no timing could otherwise hit reliably.
 pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::file(path, "output path has no file name"))?;
-    let tmp = dir.join(format!(
-        ".{}.tmp-{}",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+    write_atomic_with(path, |f| {
         let stall = std::env::var("TERRACLIP_TEST_STALL_WRITE_MS")
             .ok()
             .and_then(|v| v.parse::<u64>().ok());
@@ -93,6 +80,37 @@ pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> Result<()> {
         } else {
             f.write_all(bytes)?;
         }
+        Ok(())
+    })
+}
+
+/// The temporary file beside `path` that [`write_atomic`] writes first;
+/// `part` tells apart several temporaries of one output.
+pub fn temp_path(path: &std::path::Path, part: &str) -> Result<PathBuf> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::file(path, "output path has no file name"))?;
+    Ok(dir.join(format!(
+        ".{}.tmp-{}{part}",
+        name.to_string_lossy(),
+        std::process::id()
+    )))
+}
+
+/// [`write_atomic`] of what `fill` writes into the temporary file: for an
+/// output too large to hold in memory.
+pub fn write_atomic_with(
+    path: &std::path::Path,
+    fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temp_path(path, "")?;
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        fill(&mut f)?;
         f.sync_all()?;
         std::fs::rename(&tmp, path)
     })();

@@ -370,3 +370,189 @@ fn a_lossless_level_written_back_reads_as_the_map() {
         "{w:?} vs {bound}"
     );
 }
+
+/// The file the in-memory path writes for `map`: its whole pyramid,
+/// [`Packed::encode`], [`file::write`].
+fn in_memory_pack(map: &Heightmap, e: f64, tile: usize, source: &str) -> Vec<u8> {
+    use terraclip::pack::file;
+    let levels = Pyramid::build(map, Filter::default(), usize::MAX).levels;
+    let (packed, _) = Packed::encode(&levels, e, tile, map.lattice);
+    let path = tmp(&format!("mem-{source}-{e}-{tile}.tcz"));
+    file::write(
+        &path,
+        &packed,
+        map.cell_size,
+        &Filter::default().name(),
+        source,
+    )
+    .unwrap();
+    std::fs::read(&path).unwrap()
+}
+
+/// The file the streaming path writes for `src`, in bands of about
+/// `band_bytes`.
+fn streamed_pack(
+    src: &dyn terraclip::terrain::rows::RowSource,
+    e: f64,
+    tile: usize,
+    source: &str,
+    band_bytes: usize,
+) -> Vec<u8> {
+    use terraclip::pack::stream;
+    let path = tmp(&format!("stream-{source}-{e}-{tile}-{band_bytes}.tcz"));
+    let mut o = stream::Options::new(e, tile, Filter::default(), source);
+    o.band_bytes = band_bytes;
+    let mut last = (0, 1);
+    let s = stream::pack(src, &path, &o, &mut |d, t| last = (d, t)).unwrap();
+    assert_eq!(last.0, last.1, "progress reaches its total");
+    let bytes = std::fs::read(&path).unwrap();
+    assert_eq!(s.bytes, bytes.len() as u64);
+    // Nothing is left beside the output but the output.
+    let dir = path.parent().unwrap();
+    let stray: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp-"))
+        .collect();
+    assert!(stray.is_empty(), "temporary files left: {stray:?}");
+    bytes
+}
+
+/// A tiled f32 TIFF written by hand (the `tiff` crate writes strips only):
+/// `tile`² tiles, little-endian, uncompressed.
+fn tiled_tiff(path: &Path, w: u32, h: u32, tile: u32, v: &[f32]) {
+    let (across, down) = (w.div_ceil(tile), h.div_ceil(tile));
+    let tiles = across * down;
+    let tile_bytes = tile * tile * 4;
+    let entries: u16 = 11;
+    let ifd = 8u32;
+    let ifd_len = 2 + 12 * entries as u32 + 4;
+    let offsets_at = ifd + ifd_len;
+    let counts_at = offsets_at + 4 * tiles;
+    let data_at = counts_at + 4 * tiles;
+    let mut b = Vec::new();
+    b.extend_from_slice(b"II*\0");
+    b.extend_from_slice(&ifd.to_le_bytes());
+    b.extend_from_slice(&entries.to_le_bytes());
+    let mut entry = |tag: u16, ty: u16, count: u32, value: u32| {
+        b.extend_from_slice(&tag.to_le_bytes());
+        b.extend_from_slice(&ty.to_le_bytes());
+        b.extend_from_slice(&count.to_le_bytes());
+        b.extend_from_slice(&value.to_le_bytes());
+    };
+    entry(256, 4, 1, w); // ImageWidth
+    entry(257, 4, 1, h); // ImageLength
+    entry(258, 3, 1, 32); // BitsPerSample
+    entry(259, 3, 1, 1); // Compression: none
+    entry(262, 3, 1, 1); // Photometric: black is zero
+    entry(277, 3, 1, 1); // SamplesPerPixel
+    entry(322, 4, 1, tile); // TileWidth
+    entry(323, 4, 1, tile); // TileLength
+    entry(324, 4, tiles, offsets_at); // TileOffsets
+    entry(325, 4, tiles, counts_at); // TileByteCounts
+    entry(339, 3, 1, 3); // SampleFormat: float
+    b.extend_from_slice(&0u32.to_le_bytes());
+    for t in 0..tiles {
+        b.extend_from_slice(&(data_at + t * tile_bytes).to_le_bytes());
+    }
+    for _ in 0..tiles {
+        b.extend_from_slice(&tile_bytes.to_le_bytes());
+    }
+    for t in 0..tiles {
+        let (tx, ty) = (t % across, t / across);
+        for y in 0..tile {
+            for x in 0..tile {
+                let (gx, gy) = (tx * tile + x, ty * tile + y);
+                let s = if gx < w && gy < h {
+                    v[(gy * w + gx) as usize]
+                } else {
+                    0.0
+                };
+                b.extend_from_slice(&s.to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+/// A pack streamed in bands (level 0 read by rows, the coarser levels built
+/// and coded band by band through files) is byte for byte the in-memory
+/// pack of the same map: a PNG on its lattice, raw f32 and TIFF (strips and
+/// tiles) with no-data, and procedural terrain; in one band and in many.
+#[test]
+fn a_streamed_pack_equals_the_in_memory_pack() {
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::{self, MapRows, ProceduralRows};
+    let (map, _) = jacksboro();
+    for (e, tile) in [(0.0, 64), (1.0, 128)] {
+        let want = in_memory_pack(&map, e, tile, "jacksboro");
+        for band in [usize::MAX / 8, 20_000] {
+            let got = streamed_pack(&MapRows(map.clone()), e, tile, "jacksboro", band);
+            assert!(
+                got == want,
+                "jacksboro E = {e}, tile {tile}, bands of {band} bytes"
+            );
+        }
+    }
+    // Heights with holes: raw f32 (-9999 declared), TIFF strips of 3 rows
+    // (NaN), and a TIFF of 16² tiles.
+    let (w, h) = (157usize, 133usize);
+    let v: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32, (i / w) as f32);
+            if (x - 60.0).powi(2) + (y - 40.0).powi(2) < 150.0 {
+                f32::NAN
+            } else {
+                (x * 0.07).sin() * 80.0 + (y * 0.05).cos() * 50.0 + x * 0.3
+            }
+        })
+        .collect();
+    let raw = tmp("holes.f32");
+    let stored: Vec<u8> = v
+        .iter()
+        .flat_map(|&x| if x.is_nan() { -9999f32 } else { x }.to_le_bytes())
+        .collect();
+    std::fs::write(&raw, stored).unwrap();
+    std::fs::write(
+        raw.with_extension("json"),
+        format!(r#"{{"width": {w}, "height": {h}, "nodata": -9999, "cell_size_m": {{"x": 10, "y": 10}}}}"#),
+    )
+    .unwrap();
+    let strips = tmp("holes.tif");
+    {
+        use tiff::encoder::{colortype, TiffEncoder};
+        let mut enc = TiffEncoder::new(std::fs::File::create(&strips).unwrap()).unwrap();
+        let mut img = enc
+            .new_image::<colortype::Gray32Float>(w as u32, h as u32)
+            .unwrap();
+        img.rows_per_strip(3).unwrap();
+        img.write_data(&v).unwrap();
+    }
+    let tiled = tmp("holes-tiled.tif");
+    tiled_tiff(&tiled, w as u32, h as u32, 16, &v);
+    for path in [&raw, &strips, &tiled] {
+        let map = Heightmap::load(path).unwrap();
+        assert!(map.nodata_count() > 0);
+        let name = path.file_name().unwrap().to_string_lossy().into_owned();
+        for e in [0.0, 0.5] {
+            let want = in_memory_pack(&map, e, 32, &name);
+            let src = rows::open(path).unwrap();
+            for band in [usize::MAX / 8, 3_000] {
+                let got = streamed_pack(src.as_ref(), e, 32, &name, band);
+                assert!(got == want, "{name} E = {e}, bands of {band} bytes");
+            }
+        }
+    }
+    let p = Procedural::new(7, 190, 77);
+    let map = p.generate().unwrap();
+    let want = in_memory_pack(&map, 1.0, 32, "procedural");
+    let got = streamed_pack(
+        &ProceduralRows::new(p).unwrap(),
+        1.0,
+        32,
+        "procedural",
+        5_000,
+    );
+    assert!(got == want, "procedural");
+}

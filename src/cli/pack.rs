@@ -4,10 +4,10 @@
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
-use terraclip::pack::{file, Packed};
-use terraclip::pyramid::{Filter, Pyramid};
+use terraclip::pack::stream;
+use terraclip::pyramid::Filter;
 use terraclip::scene::Scene;
-use terraclip::terrain::{self, Heightmap};
+use terraclip::terrain::rows::{self, RowSource};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -30,12 +30,13 @@ pub struct Args {
     pub json: bool,
 }
 
-fn load(input: &std::path::Path) -> anyhow::Result<Heightmap> {
+/// The input as rows: a scene's terrain, or a heightmap file.
+fn source(input: &std::path::Path) -> anyhow::Result<Box<dyn RowSource>> {
     if input.extension().is_some_and(|e| e == "toml") {
         let s = Scene::load(input)?;
-        Ok(terrain::load(&s.terrain, &s.base_dir).map_err(|e| s.named(e))?)
+        Ok(rows::for_terrain(&s.terrain, &s.base_dir).map_err(|e| s.named(e))?)
     } else {
-        Ok(Heightmap::load(input)?)
+        Ok(rows::open(input)?)
     }
 }
 
@@ -50,31 +51,32 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::bail!("--tile must be even and within 2..=4096, got {}", a.tile);
     }
     let t = Instant::now();
-    let map = load(&a.input)?;
-    let (w, h, cell_size, lattice) = (map.width(), map.height(), map.cell_size, map.lattice);
-    // The map becomes level 0 rather than being copied into it.
-    let pyramid = Pyramid::from_heightmap(map, a.filter, usize::MAX);
-    let (packed, recon) = Packed::encode(&pyramid.levels, a.max_error, a.tile, lattice);
-    // The bound as achieved, over every sample of every level.
-    let worst = pyramid
-        .levels
-        .iter()
-        .zip(&recon)
-        .flat_map(|(s, r)| s.data.iter().zip(&r.data))
-        .map(|(&x, &y)| (x as f64 - y as f64).abs())
-        .fold(0.0, f64::max);
-    let source = a.input.display().to_string();
-    let bytes = file::write(&a.out, &packed, cell_size, &a.filter.name(), &source)?;
+    let src = source(&a.input)?;
+    let [w, h] = src.size();
+    let source_name = a.input.display().to_string();
+    let opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
+    let bar = super::progress(0, "pack");
+    let summary = stream::pack(src.as_ref(), &a.out, &opts, &mut |done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    })?;
+    bar.finish_and_clear();
+    let stream::Summary {
+        levels,
+        bytes,
+        max_error_seen: worst,
+        ..
+    } = summary;
     let ratio = (w * h * 4) as f64 / bytes as f64;
     let ms = t.elapsed().as_secs_f64() * 1e3;
     let v = json!({
         "output": a.out, "width": w, "height": h,
-        "levels": packed.levels.len(), "max_error": a.max_error,
-        "max_error_seen": worst, "tile": packed.tile, "bytes": bytes,
+        "levels": levels, "max_error": a.max_error,
+        "max_error_seen": worst, "tile": a.tile, "bytes": bytes,
         "ratio": ratio, "ms": ms,
         "peak_rss_bytes": terraclip::studies::scaling::peak_rss(),
     });
-    let (levels, out) = (packed.levels.len(), a.out.display());
+    let out = a.out.display();
     super::report(a.json, v, || {
         format!(
             "wrote {out}: {w}×{h}, {levels} levels, {bytes} bytes ({ratio:.2}× of f32), largest error {worst} m (bound {}), {ms:.0} ms",

@@ -21,7 +21,7 @@
 //! its phase and the roughness of what it was predicted from.
 
 use super::model::{self, ESCAPE, K, SCALES};
-use crate::pyramid::PyramidLevel;
+use crate::pyramid::{PyramidLevel, Rows};
 pub use crate::terrain::Lattice;
 use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
 use constriction::stream::stack::DefaultAnsCoder;
@@ -159,6 +159,24 @@ impl Coarse for PyramidLevel {
     }
 }
 
+/// A band of the coarser level must hold every row the clamped indices
+/// reach: [`coarse_rows`] of the tiles it predicts.
+impl Coarse for Rows<'_> {
+    fn at(&self, i: i64, j: i64) -> f32 {
+        let x = i.clamp(0, self.width as i64 - 1) as usize;
+        let y = j.clamp(0, self.height as i64 - 1) as usize;
+        self.data[self.index(x, y)]
+    }
+}
+
+/// The rows of the coarser level (`coarse_height` rows) that predicting
+/// fine rows `[y0, y1)` reads: each even fine row 2j reads coarse rows
+/// j − 1 ..= j + 1.
+pub fn coarse_rows(coarse_height: usize, y0: usize, y1: usize) -> std::ops::Range<usize> {
+    let last = coarse_height - 1;
+    (y0 / 2).saturating_sub(1).min(last)..((y1 - 1) / 2 + 1).min(last) + 1
+}
+
 /// One level as coded.
 #[derive(Clone, Debug)]
 pub struct PackedLevel {
@@ -272,7 +290,13 @@ fn mask_model(count: u32, n: usize) -> DefaultContiguousCategoricalEntropyModel 
 }
 
 /// The rectangle of tile (tx, ty) of a `w`×`h` level.
-fn tile_rect(w: usize, h: usize, t: usize, tx: usize, ty: usize) -> (usize, usize, usize, usize) {
+pub(crate) fn tile_rect(
+    w: usize,
+    h: usize,
+    t: usize,
+    tx: usize,
+    ty: usize,
+) -> (usize, usize, usize, usize) {
     let (x0, y0) = (tx * t, ty * t);
     (x0, y0, (x0 + t).min(w) - x0, (y0 + t).min(h) - y0)
 }
@@ -386,8 +410,8 @@ fn context(phase: usize, activity: f64, unit: f64) -> usize {
 /// Encodes one tile of `level` (its samples `src`), predicted from
 /// `coarse` (`None` on the coarsest level); returns the tile's bytes and
 /// its reconstruction.
-fn encode_tile(
-    src: &PyramidLevel,
+pub(crate) fn encode_tile(
+    src: Rows,
     coarse: Option<&dyn Coarse>,
     quant: Quant,
     rect: (usize, usize, usize, usize),
@@ -404,7 +428,7 @@ fn encode_tile(
         let (tx, ty) = (i % w, i / w);
         let (p, act) = prediction(coarse, &rec, rect, tx, ty);
         ctx[i] = context(phase(x0 + tx, y0 + ty, top), act, quant.unit(p));
-        let c = quant.code(src.data[(y0 + ty) * src.width + x0 + tx], p);
+        let c = quant.code(src.data[src.index(x0 + tx, y0 + ty)], p);
         rec[i] = c.rec;
         sym[i] = match c.raw {
             Some(bits) => {
@@ -444,7 +468,7 @@ fn encode_tile(
             .unwrap_or(0) as u8;
     }
     let nodata: Vec<bool> = (0..n)
-        .map(|i| src.nodata[(y0 + i / w) * src.width + x0 + i % w])
+        .map(|i| src.nodata[src.index(x0 + i % w, y0 + i / w)])
         .collect();
     let count = nodata.iter().filter(|&&b| b).count() as u32;
     let flags = if count == 0 {
@@ -600,7 +624,12 @@ fn decode_tile(
     Ok((rec, nodata))
 }
 
-fn level_of(width: usize, height: usize, data: Vec<f32>, nodata: Vec<bool>) -> PyramidLevel {
+pub(crate) fn level_of(
+    width: usize,
+    height: usize,
+    data: Vec<f32>,
+    nodata: Vec<bool>,
+) -> PyramidLevel {
     crate::pyramid::with_range(PyramidLevel {
         width,
         height,
@@ -614,22 +643,31 @@ fn level_of(width: usize, height: usize, data: Vec<f32>, nodata: Vec<bool>) -> P
 /// The quantisation of a level: bounded error when `max_error` > 0;
 /// otherwise lossless, on `lattice` where every sample lies on it.
 fn quant_for(level: &PyramidLevel, max_error: f64, lattice: Option<Lattice>) -> Quant {
-    if max_error > 0.0 {
-        return Quant::Step { max_error };
+    let lattice = usable(lattice)
+        .filter(|&l| max_error == 0.0 && level.data.par_iter().all(|&x| on_lattice(x, l)));
+    quant(max_error, lattice)
+}
+
+/// The quantisation of a level coded to `max_error`, where every sample is
+/// known to lie on `lattice` (if any).
+pub(crate) fn quant(max_error: f64, lattice: Option<Lattice>) -> Quant {
+    match lattice {
+        _ if max_error > 0.0 => Quant::Step { max_error },
+        Some(Lattice { offset, scale }) => Quant::Lattice { offset, scale },
+        None => Quant::Bits,
     }
-    if let Some(Lattice { offset, scale }) = lattice {
-        if scale > 0.0 && scale.is_finite() && offset.is_finite() {
-            let q = Quant::Lattice { offset, scale };
-            let on = level.data.par_iter().all(|&x| {
-                let k = ((x as f64 - offset) / scale).round();
-                k.is_finite() && (offset + k * scale) as f32 == x
-            });
-            if on {
-                return q;
-            }
-        }
-    }
-    Quant::Bits
+}
+
+/// `lattice` if a quantiser can use it (a finite origin, a finite step > 0).
+pub(crate) fn usable(lattice: Option<Lattice>) -> Option<Lattice> {
+    lattice.filter(|l| l.scale > 0.0 && l.scale.is_finite() && l.offset.is_finite())
+}
+
+/// Whether `x` is exactly a point of `lattice`.
+#[inline]
+pub(crate) fn on_lattice(x: f32, Lattice { offset, scale }: Lattice) -> bool {
+    let k = ((x as f64 - offset) / scale).round();
+    k.is_finite() && (offset + k * scale) as f32 == x
 }
 
 impl Packed {
@@ -656,7 +694,7 @@ impl Packed {
                 .into_par_iter()
                 .map(|t| {
                     let rect = tile_rect(src.width, src.height, tile, t % tx, t / tx);
-                    encode_tile(src, coarse.map(|c| c as &dyn Coarse), quant, rect)
+                    encode_tile(src.rows(), coarse.map(|c| c as &dyn Coarse), quant, rect)
                 })
                 .collect();
             let mut data = vec![0f32; src.width * src.height];

@@ -78,6 +78,58 @@ impl Header {
     }
 }
 
+impl Header {
+    /// The header of `levels` (width, height, quantisation, decoded range;
+    /// finest first).
+    pub(crate) fn new(
+        cell_size: [f64; 2],
+        filter: &str,
+        max_error: f64,
+        tile: usize,
+        source: &str,
+        levels: impl IntoIterator<Item = (usize, usize, Quant, [f32; 2])>,
+    ) -> Self {
+        Header {
+            cell_size,
+            filter: filter.to_string(),
+            max_error,
+            tile,
+            source: source.to_string(),
+            levels: levels
+                .into_iter()
+                .map(|(width, height, quant, range)| LevelSpec {
+                    width,
+                    height,
+                    quant,
+                    range,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Everything before the tiles: magic, version, `header`, and the index of
+/// tiles given as (length, CRC-32), finest level first and row-major,
+/// which are to follow the prefix in that order.
+pub(crate) fn prefix(header: &Header, tiles: &[(u32, u32)]) -> Result<Vec<u8>> {
+    let json = serde_json::to_vec(header).map_err(|e| Error::value("pack", e.to_string()))?;
+    let start = 20 + json.len() + ENTRY * tiles.len();
+    let mut out = Vec::with_capacity(start);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(&crc32fast::hash(&json).to_le_bytes());
+    out.extend_from_slice(&json);
+    let mut at = start as u64;
+    for &(len, crc) in tiles {
+        out.extend_from_slice(&at.to_le_bytes());
+        out.extend_from_slice(&len.to_le_bytes());
+        out.extend_from_slice(&crc.to_le_bytes());
+        at += len as u64;
+    }
+    Ok(out)
+}
+
 /// Writes `packed` to `path` (through a temporary file and a rename).
 pub fn write(
     path: &Path,
@@ -86,39 +138,23 @@ pub fn write(
     filter: &str,
     source: &str,
 ) -> Result<u64> {
-    let header = Header {
+    let header = Header::new(
         cell_size,
-        filter: filter.to_string(),
-        max_error: packed.max_error,
-        tile: packed.tile,
-        source: source.to_string(),
-        levels: packed
+        filter,
+        packed.max_error,
+        packed.tile,
+        source,
+        packed
             .levels
             .iter()
-            .map(|l| LevelSpec {
-                width: l.width,
-                height: l.height,
-                quant: l.quant,
-                range: l.range,
-            })
-            .collect(),
-    };
-    let json = serde_json::to_vec(&header).map_err(|e| Error::value("pack", e.to_string()))?;
+            .map(|l| (l.width, l.height, l.quant, l.range)),
+    );
     let tiles: Vec<&Vec<u8>> = packed.levels.iter().flat_map(|l| &l.tiles).collect();
-    let start = 20 + json.len() + ENTRY * tiles.len();
-    let mut out = Vec::with_capacity(start + tiles.iter().map(|t| t.len()).sum::<usize>());
-    out.extend_from_slice(MAGIC);
-    out.extend_from_slice(&VERSION.to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(&crc32fast::hash(&json).to_le_bytes());
-    out.extend_from_slice(&json);
-    let mut at = start as u64;
-    for t in &tiles {
-        out.extend_from_slice(&at.to_le_bytes());
-        out.extend_from_slice(&(t.len() as u32).to_le_bytes());
-        out.extend_from_slice(&crc32fast::hash(t).to_le_bytes());
-        at += t.len() as u64;
-    }
+    let index: Vec<(u32, u32)> = tiles
+        .iter()
+        .map(|t| (t.len() as u32, crc32fast::hash(t)))
+        .collect();
+    let mut out = prefix(&header, &index)?;
     for t in &tiles {
         out.extend_from_slice(t);
     }

@@ -6,5 +6,6 @@
 pub mod codec;
 pub mod file;
 pub mod model;
+pub mod stream;
 
 pub use codec::{Lattice, Packed, PackedLevel, Quant, Tile, TileError};

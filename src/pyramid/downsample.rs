@@ -5,7 +5,7 @@
 //! same bits: each output sample is the same sum, in the same order, as a
 //! per-sample loop over the kernel.
 
-use super::PyramidLevel;
+use super::{PyramidLevel, Rows};
 use rayon::prelude::*;
 
 /// Weighted sums of a line of output samples, Σ w·v and Σ w over the valid
@@ -52,7 +52,7 @@ impl Sums {
 
 /// Reusable buffers of one worker: the sums and the pass-1 rows of a block.
 #[derive(Default)]
-pub(super) struct Scratch {
+pub(crate) struct Scratch {
     acc: Sums,
     rows: Vec<f64>,
     rows_ok: Vec<f64>,
@@ -60,7 +60,7 @@ pub(super) struct Scratch {
 
 /// Output samples `[x0, x1) × [y0, y1)` of the level below `src`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Block {
+pub(crate) struct Block {
     pub x0: usize,
     pub y0: usize,
     pub x1: usize,
@@ -77,7 +77,7 @@ impl Block {
 }
 
 /// Size of the level made from a `w`×`h` one (vertex-centred halving).
-pub(super) fn halved(w: usize, h: usize) -> (usize, usize) {
+pub(crate) fn halved(w: usize, h: usize) -> (usize, usize) {
     ((w - 1) / 2 + 1, (h - 1) / 2 + 1)
 }
 
@@ -113,7 +113,7 @@ fn padded_halves(
 /// along x, every second sample kept, into `out` (values, f32 held as f64)
 /// and `out_ok` (1 valid, 0 no-data): the form pass 2 sums.
 fn filter_row(
-    src: &PyramidLevel,
+    src: Rows,
     y: usize,
     x0: usize,
     kernel: &[f64],
@@ -122,7 +122,8 @@ fn filter_row(
     out_ok: &mut [f64],
 ) {
     let w = src.width;
-    let line = |x: usize| (src.data[y * w + x], src.nodata[y * w + x]);
+    let row = src.index(0, y);
+    let line = |x: usize| (src.data[row + x], src.nodata[row + x]);
     let halves = padded_halves(kernel.len() / 2, 2 * x0, out.len(), w, line);
     acc.clear(out.len());
     for (k, &wk) in kernel.iter().enumerate() {
@@ -138,9 +139,10 @@ fn filter_row(
 
 /// Filters block `b` of the level below `src` into `out` / `out_nd` (row-
 /// major, `b.width()` per row). Pass 1 filters the input rows the block's
-/// taps reach, over its columns only; pass 2 filters those along y.
-pub(super) fn block(
-    src: &PyramidLevel,
+/// taps reach ([`input_rows`]: `src` must hold them), over its columns
+/// only; pass 2 filters those along y.
+pub(crate) fn block(
+    src: Rows,
     kernel: &[f64],
     b: Block,
     s: &mut Scratch,
@@ -151,8 +153,10 @@ pub(super) fn block(
     let bw = b.width();
     let r = kernel.len() / 2;
     let clamp = |i: i64| i.clamp(0, h as i64 - 1) as usize;
-    let ya = clamp(2 * b.y0 as i64 - r as i64);
-    let yb = clamp(2 * (b.y1 as i64 - 1) + r as i64);
+    let (ya, yb) = {
+        let rows = input_rows(h, r, b.y0, b.y1);
+        (rows.start, rows.end - 1)
+    };
     s.rows.resize((yb - ya + 1) * bw, 0.0);
     s.rows_ok.resize((yb - ya + 1) * bw, 0.0);
     let pass1 = s
@@ -180,6 +184,13 @@ pub(super) fn block(
     }
 }
 
+/// The input rows that output rows `[y0, y1)` of the level below a level
+/// of `h` rows read through a kernel of radius `r`.
+pub(crate) fn input_rows(h: usize, r: usize, y0: usize, y1: usize) -> std::ops::Range<usize> {
+    let clamp = |i: i64| i.clamp(0, h as i64 - 1) as usize;
+    clamp(2 * y0 as i64 - r as i64)..clamp(2 * (y1 as i64 - 1) + r as i64) + 1
+}
+
 /// Output rows per task of [`downsample`]: each task filters the input
 /// rows it needs along x itself (2·64 + taps − 1 of them), so no
 /// full-size intermediate image is allocated; the rows shared with the
@@ -204,7 +215,7 @@ pub(super) fn downsample(src: &PyramidLevel, kernel: &[f64]) -> PyramidLevel {
                 x1: w2,
                 y1: y0 + out.len() / w2,
             };
-            block(src, kernel, b, s, out, out_nd);
+            block(src.rows(), kernel, b, s, out, out_nd);
         });
     PyramidLevel {
         width: w2,
@@ -334,7 +345,7 @@ mod tests {
             },
         ] {
             let (mut out, mut nd) = (vec![0.0; b.len()], vec![false; b.len()]);
-            block(&src, &k, b, &mut s, &mut out, &mut nd);
+            block(src.rows(), &k, b, &mut s, &mut out, &mut nd);
             for y in b.y0..b.y1 {
                 for x in b.x0..b.x1 {
                     let i = (y - b.y0) * b.width() + x - b.x0;

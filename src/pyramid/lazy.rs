@@ -343,7 +343,7 @@ impl Pyramid {
                 (0, None) => unreachable!("a given level 0 has every tile"),
                 _ => {
                     let (mut v, mut nd) = (vec![0.0; b.len()], vec![false; b.len()]);
-                    downsample::block(&below[l - 1], kernel, b, s, &mut v, &mut nd);
+                    downsample::block(below[l - 1].rows(), kernel, b, s, &mut v, &mut nd);
                     (v, nd)
                 }
             })

@@ -13,7 +13,7 @@
 //! No-data texels take no part in the weights; a coarse sample is no-data
 //! where the fine sample under it is.
 
-mod downsample;
+pub(crate) mod downsample;
 mod lazy;
 
 use crate::terrain::Heightmap;
@@ -131,6 +131,40 @@ pub struct PyramidLevel {
     pub max: f32,
 }
 
+/// Rows `[y0, y0 + data.len() / width)` of a `width` × `height` level: the
+/// whole level, or the band of it a streaming pack holds in memory while
+/// the rest waits on disk. The downsampler and the pack codec read levels
+/// through it, so both give the same bits from a band as from the whole.
+#[derive(Clone, Copy, Debug)]
+pub struct Rows<'a> {
+    /// Samples across the level (and the band).
+    pub width: usize,
+    /// Samples down the whole level, which indices clamp to.
+    pub height: usize,
+    /// The level row the band's first row is.
+    pub y0: usize,
+    /// Heights of the band's rows, row-major.
+    pub data: &'a [f32],
+    /// Their no-data flags.
+    pub nodata: &'a [bool],
+}
+
+impl Rows<'_> {
+    /// One past the band's last level row.
+    pub fn end(&self) -> usize {
+        self.y0 + self.data.len() / self.width
+    }
+    /// Index into the band of level sample (x, y), which it must hold.
+    #[inline]
+    pub fn index(&self, x: usize, y: usize) -> usize {
+        debug_assert!(
+            (self.y0..self.end()).contains(&y),
+            "row {y} outside the band"
+        );
+        (y - self.y0) * self.width + x
+    }
+}
+
 impl PyramidLevel {
     /// Level 0 made of a heightmap's own arrays (moved, not copied), with
     /// its height range.
@@ -145,6 +179,17 @@ impl PyramidLevel {
             min: 0.0,
             max: 0.0,
         })
+    }
+
+    /// The whole level as [`Rows`].
+    pub fn rows(&self) -> Rows<'_> {
+        Rows {
+            width: self.width,
+            height: self.height,
+            y0: 0,
+            data: &self.data,
+            nodata: &self.nodata,
+        }
     }
 
     /// Whether a coarser level can be made: it needs 2 samples per axis.

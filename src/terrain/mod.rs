@@ -13,6 +13,7 @@ pub(crate) mod huge;
 mod image_file;
 pub mod procedural;
 mod raw;
+pub mod rows;
 mod sidecar;
 mod tiff_file;
 pub mod world;
@@ -52,6 +53,18 @@ pub struct Heightmap {
 
 /// Checks a width × height against [`MAX_SIDE`] and [`MAX_TEXELS`].
 pub fn check_dimensions(width: u64, height: u64) -> std::result::Result<(), String> {
+    check_side(width, height)?;
+    if width * height > MAX_TEXELS {
+        return Err(format!(
+            "dimensions {width}×{height} exceed the limit of {MAX_TEXELS} texels held in memory"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks a width × height against [`MAX_SIDE`] alone: the limit of maps
+/// read by rows ([`rows`]), which are never held whole.
+pub fn check_side(width: u64, height: u64) -> std::result::Result<(), String> {
     if width == 0 || height == 0 {
         return Err(format!("zero-sized image ({width}×{height})"));
     }
@@ -60,9 +73,9 @@ pub fn check_dimensions(width: u64, height: u64) -> std::result::Result<(), Stri
             "a heightmap needs at least 2×2 texels, got {width}×{height}"
         ));
     }
-    if width > MAX_SIDE || height > MAX_SIDE || width * height > MAX_TEXELS {
+    if width > MAX_SIDE || height > MAX_SIDE {
         return Err(format!(
-            "dimensions {width}×{height} exceed the limit of {MAX_SIDE} per side and {MAX_TEXELS} texels"
+            "dimensions {width}×{height} exceed the limit of {MAX_SIDE} per side"
         ));
     }
     Ok(())

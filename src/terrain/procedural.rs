@@ -87,6 +87,12 @@ impl Procedural {
     /// Checks the parameters `generate` and lazy generation rely on.
     pub fn validate(&self) -> Result<(), String> {
         super::check_dimensions(self.width as u64, self.height as u64)?;
+        self.validate_shape()
+    }
+
+    /// Checks the parameters other than the size (which a generator by
+    /// rows limits per side only).
+    pub fn validate_shape(&self) -> Result<(), String> {
         if !(self.wavelength.is_finite() && self.wavelength > 0.0) {
             return Err("procedural wavelength must be positive".into());
         }

@@ -13,62 +13,97 @@ use tiff::decoder::{Decoder, DecodingResult, Limits};
 use tiff::tags::Tag;
 use tiff::ColorType;
 
-pub(super) fn read(path: &Path) -> Result<Heightmap> {
-    let bad = |e: tiff::TiffError| Error::file(path, format!("cannot decode TIFF: {e}"));
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut limits = Limits::default();
-    limits.decoding_buffer_size = (MAX_TEXELS * 8) as usize;
-    limits.intermediate_buffer_size = (MAX_TEXELS * 8) as usize;
-    let mut dec = Decoder::new(std::io::BufReader::new(file))
-        .map_err(bad)?
-        .with_limits(limits);
-    let (w, h) = dec.dimensions().map_err(bad)?;
-    named(path, check_dimensions(w as u64, h as u64))?;
-    match dec.colortype().map_err(bad)? {
-        ColorType::Gray(_) => {}
-        ColorType::Multiband { num_samples: 1, .. } => {}
-        other => {
-            return Err(Error::file(
-                path,
-                format!("expected a single-band grayscale TIFF, found {other:?}"),
-            ))
-        }
-    }
-    let scale = match dec.find_tag(Tag::ModelPixelScaleTag) {
-        Ok(Some(v)) => {
-            let s = v.into_f64_vec().map_err(bad)?;
-            if s.len() < 2 || !(s[0] > 0.0 && s[1] > 0.0 && s[0].is_finite() && s[1].is_finite()) {
-                return Err(Error::file(path, "GeoTIFF ModelPixelScale is not positive"));
+/// An opened TIFF and what its tags say: enough to read it whole or by
+/// chunks (strips or tiles).
+pub(super) struct Tiff {
+    pub dec: Decoder<std::io::BufReader<std::fs::File>>,
+    pub width: usize,
+    pub height: usize,
+    pub cell_size: [f64; 2],
+    pub crs: Option<String>,
+    pub nodata: Option<f32>,
+}
+
+/// An error of the TIFF decoder, naming the file.
+pub(super) fn bad(path: &Path) -> impl Fn(tiff::TiffError) -> Error + '_ {
+    move |e| Error::file(path, format!("cannot decode TIFF: {e}"))
+}
+
+impl Tiff {
+    /// Opens `path` and reads its tags; `check` is the size limit (the
+    /// whole-map one, or the per-side one of a reader by rows).
+    pub fn open(
+        path: &Path,
+        check: fn(u64, u64) -> std::result::Result<(), String>,
+    ) -> Result<Self> {
+        let bad = bad(path);
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut limits = Limits::default();
+        limits.decoding_buffer_size = (MAX_TEXELS * 8) as usize;
+        limits.intermediate_buffer_size = (MAX_TEXELS * 8) as usize;
+        let mut dec = Decoder::new(std::io::BufReader::new(file))
+            .map_err(&bad)?
+            .with_limits(limits);
+        let (w, h) = dec.dimensions().map_err(&bad)?;
+        named(path, check(w as u64, h as u64))?;
+        match dec.colortype().map_err(&bad)? {
+            ColorType::Gray(_) => {}
+            ColorType::Multiband { num_samples: 1, .. } => {}
+            other => {
+                return Err(Error::file(
+                    path,
+                    format!("expected a single-band grayscale TIFF, found {other:?}"),
+                ))
             }
-            Some([s[0], s[1]])
         }
-        _ => None,
-    };
-    let keys = match dec.find_tag(Tag::GeoKeyDirectoryTag) {
-        Ok(Some(v)) => geo_keys(&v.into_u16_vec().map_err(bad)?)
-            .map_err(|r| Error::file(path, format!("GeoTIFF key directory: {r}")))?,
-        _ => GeoKeys::default(),
-    };
-    let tiepoint = match dec.find_tag(Tag::ModelTiepointTag) {
-        Ok(Some(v)) => Some(v.into_f64_vec().map_err(bad)?),
-        _ => None,
-    };
-    let (cell, crs) =
-        cell_in_metres(scale, &keys, tiepoint.as_deref(), h).map_err(|r| Error::file(path, r))?;
-    let nodata = match dec.find_tag(Tag::GdalNodata) {
-        Ok(Some(v)) => {
-            let s = v.into_string().map_err(bad)?;
-            let t = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
-            Some(
-                t.parse::<f64>()
-                    .map_err(|_| Error::file(path, format!("GDAL_NODATA '{t}' is not a number")))?
-                    as f32,
-            )
-        }
-        _ => None,
-    };
-    let img = dec.read_image().map_err(bad)?;
-    let (values, format): (Vec<f32>, &str) = match img {
+        let scale = match dec.find_tag(Tag::ModelPixelScaleTag) {
+            Ok(Some(v)) => {
+                let s = v.into_f64_vec().map_err(&bad)?;
+                if s.len() < 2
+                    || !(s[0] > 0.0 && s[1] > 0.0 && s[0].is_finite() && s[1].is_finite())
+                {
+                    return Err(Error::file(path, "GeoTIFF ModelPixelScale is not positive"));
+                }
+                Some([s[0], s[1]])
+            }
+            _ => None,
+        };
+        let keys = match dec.find_tag(Tag::GeoKeyDirectoryTag) {
+            Ok(Some(v)) => geo_keys(&v.into_u16_vec().map_err(&bad)?)
+                .map_err(|r| Error::file(path, format!("GeoTIFF key directory: {r}")))?,
+            _ => GeoKeys::default(),
+        };
+        let tiepoint = match dec.find_tag(Tag::ModelTiepointTag) {
+            Ok(Some(v)) => Some(v.into_f64_vec().map_err(&bad)?),
+            _ => None,
+        };
+        let (cell, crs) = cell_in_metres(scale, &keys, tiepoint.as_deref(), h)
+            .map_err(|r| Error::file(path, r))?;
+        let nodata =
+            match dec.find_tag(Tag::GdalNodata) {
+                Ok(Some(v)) => {
+                    let s = v.into_string().map_err(&bad)?;
+                    let t = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
+                    Some(t.parse::<f64>().map_err(|_| {
+                        Error::file(path, format!("GDAL_NODATA '{t}' is not a number"))
+                    })? as f32)
+                }
+                _ => None,
+            };
+        Ok(Tiff {
+            dec,
+            width: w as usize,
+            height: h as usize,
+            cell_size: cell,
+            crs,
+            nodata,
+        })
+    }
+}
+
+/// Samples decoded from a TIFF as f32, with the format's short name.
+pub(super) fn to_f32(img: DecodingResult) -> std::result::Result<(Vec<f32>, &'static str), String> {
+    Ok(match img {
         DecodingResult::U8(v) => (v.into_iter().map(f32::from).collect(), "tiff-u8"),
         DecodingResult::U16(v) => (v.into_iter().map(f32::from).collect(), "tiff-u16"),
         DecodingResult::I8(v) => (v.into_iter().map(f32::from).collect(), "tiff-i8"),
@@ -79,17 +114,20 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
         DecodingResult::F32(v) => (v, "tiff-f32"),
         DecodingResult::F64(v) => (v.into_iter().map(|x| x as f32).collect(), "tiff-f64"),
         DecodingResult::U64(_) | DecodingResult::I64(_) => {
-            return Err(Error::file(
-                path,
-                "64-bit integer TIFF samples are not supported",
-            ))
+            return Err("64-bit integer TIFF samples are not supported".into())
         }
-    };
+    })
+}
+
+pub(super) fn read(path: &Path) -> Result<Heightmap> {
+    let mut t = Tiff::open(path, check_dimensions)?;
+    let img = t.dec.read_image().map_err(bad(path))?;
+    let (values, format) = named(path, to_f32(img))?;
     let mut map = named(
         path,
-        Heightmap::from_values(w as usize, h as usize, values, nodata, cell, format),
+        Heightmap::from_values(t.width, t.height, values, t.nodata, t.cell_size, format),
     )?;
-    map.crs = crs;
+    map.crs = t.crs;
     Ok(map)
 }
 
