@@ -177,6 +177,20 @@ fn every_json_key_is_in_docs_cli_md() {
     let pack = s(&tmp("j.tcz"));
     let unpacked = s(&tmp("u.png"));
     let jacksboro = "tests/data/jacksboro_16.png";
+    // A pack to render from, decoded tile by tile (the `lazy.tiles_*` keys).
+    let render_pack = s(&tmp("render.tcz"));
+    {
+        use terraclip::pack::stream;
+        let src = terraclip::terrain::rows::open(std::path::Path::new(jacksboro)).unwrap();
+        let o = stream::Options::new(1.0, 64, Default::default(), "jacksboro");
+        stream::pack(
+            src.as_ref(),
+            std::path::Path::new(&render_pack),
+            &o,
+            &mut |_, _| {},
+        )
+        .unwrap();
+    }
     // Each command's runs: together they print every key the page lists.
     let runs: Vec<(&str, Vec<Vec<&str>>)> = vec![
         (
@@ -184,6 +198,15 @@ fn every_json_key_is_in_docs_cli_md() {
             vec![
                 vec!["render", "--size", "48x27", "-o", &png],
                 vec!["render", &lazy, "--size", "48x27", "-o", &png],
+                vec![
+                    "render",
+                    "--heightmap",
+                    &render_pack,
+                    "--size",
+                    "48x27",
+                    "-o",
+                    &png,
+                ],
             ],
         ),
         ("golden", vec![vec!["golden", &golden]]),

@@ -271,12 +271,17 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
 /// The jacksboro golden scene with its terrain replaced by a pack of the
 /// same map at bound `e`.
 fn jacksboro_scene_from_pack(e: f64, name: &str) -> terraclip::scene::Scene {
+    jacksboro_scene_from_pack_tiled(e, 128, name)
+}
+
+/// [`jacksboro_scene_from_pack`] in `tile`² tiles.
+fn jacksboro_scene_from_pack_tiled(e: f64, tile: usize, name: &str) -> terraclip::scene::Scene {
     use terraclip::pack::file;
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let golden = root.join("golden/jacksboro-oblique.toml");
     let mut scene = terraclip::scene::Scene::load(&golden).unwrap();
     let map = Heightmap::load(&root.join("tests/data/jacksboro_16.png")).unwrap();
-    let (packed, _) = Packed::encode(&levels_of(&map), e, 128, map.lattice);
+    let (packed, _) = Packed::encode(&levels_of(&map), e, tile, map.lattice);
     let path = tmp(name);
     file::write(
         &path,
@@ -555,4 +560,125 @@ fn a_streamed_pack_equals_the_in_memory_pack() {
         5_000,
     );
     assert!(got == want, "procedural");
+}
+
+/// Frames of `scene` along a path of `frames` frames, `step` metres each,
+/// rendered in one session: images and stats.
+fn flight(
+    scene: &terraclip::scene::Scene,
+    frames: usize,
+    step: f64,
+) -> Vec<(terraclip::render::Image, terraclip::RenderStats)> {
+    use terraclip::frame::stats::Passes;
+    use terraclip::render::{RenderOptions, Session};
+    let mut session = Session::new(scene, &mut Passes::default()).unwrap();
+    terraclip::studies::views::path(&scene.camera(), frames, step)
+        .iter()
+        .map(|cam| {
+            session
+                .render(cam, &RenderOptions::default(), Passes::default())
+                .unwrap()
+        })
+        .collect()
+}
+
+/// A lossless pack decoded tile by tile as a flight's windows reach its
+/// tiles (and evicting those they leave) renders every frame bit for bit
+/// as the map loaded whole; each frame decodes only what its windows
+/// newly reach, and what stays decoded is bounded by the windows. The map
+/// is 4097 wide, so the runs of evicted tiles along a row span whole pages
+/// that are given back (and read as zeros until decoded again).
+#[test]
+fn a_flight_over_a_pack_decoded_as_it_goes_renders_the_map_itself() {
+    use terraclip::pack::stream;
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let mut direct = terraclip::scene::Scene::default_scene();
+    let p = Procedural::new(20041, 4097, 513);
+    direct.terrain.procedural = Some(p.clone());
+    direct.camera.position = [2000.0, -2500.0, 900.0];
+    direct.camera.look_at = Some([4000.0, -2500.0, 150.0]);
+    (direct.image.width, direct.image.height) = (320, 180);
+    let path = tmp("flight.tcz");
+    let o = stream::Options::new(0.0, 32, Filter::default(), "flight");
+    stream::pack(&ProceduralRows::new(p).unwrap(), &path, &o, &mut |_, _| {}).unwrap();
+    let mut packed = direct.clone();
+    (packed.terrain.procedural, packed.terrain.file) = (None, Some(path));
+    let (frames, step) = (48, 400.0);
+    let want = flight(&direct, frames, step);
+    let got = flight(&packed, frames, step);
+    let mut evicted = 0;
+    for (i, ((a, _), (b, s))) in want.iter().zip(&got).enumerate() {
+        assert!(a.rgba == b.rgba, "frame {i}: colour differs");
+        assert!(
+            a.depth
+                .iter()
+                .zip(&b.depth)
+                .all(|(x, y)| x.to_bits() == y.to_bits()),
+            "frame {i}: depth differs"
+        );
+        let z = s.lazy.as_ref().expect("a pack decoded tile by tile");
+        assert_eq!((z.levels_unbuilt, z.levels_waiting), (0, 0), "frame {i}");
+        if i == 0 {
+            assert!(z.tiles_this_frame > 0);
+        }
+        // A window of n = 63 (65 texels with its ring) spans at most 4 × 4
+        // tiles of 32², and one tile around them is kept: 6 × 6 per drawn
+        // level (7 of them), and the 5 coarser levels' 11 tiles.
+        assert!(z.tiles_resident.unwrap() <= 36 * 7 + 11, "frame {i}: {z:?}");
+        evicted += z.tiles_evicted.unwrap();
+    }
+    assert!(evicted > 100, "the flight leaves tiles behind: {evicted}");
+    // Once the windows hold still nothing more is decoded.
+    let mut session = terraclip::render::Session::new(&packed, &mut Default::default()).unwrap();
+    let cam = packed.camera();
+    let opts = terraclip::render::RenderOptions::default();
+    session.render(&cam, &opts, Default::default()).unwrap();
+    let (again, s) = session.render(&cam, &opts, Default::default()).unwrap();
+    assert_eq!(s.lazy.unwrap().tiles_this_frame, 0);
+    assert!(again.rgba == want[0].0.rgba);
+}
+
+/// With a budget of one sample an update, the coarsest drawn level comes
+/// first and the finer ones wait, then appear frame by frame (LH04's
+/// graceful degradation); once all are drawn the frame is the map's own.
+#[test]
+fn a_pack_over_budget_draws_the_coarse_levels_first() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let direct =
+        terraclip::scene::Scene::load(&root.join("golden/jacksboro-oblique.toml")).unwrap();
+    let mut packed = jacksboro_scene_from_pack_tiled(0.0, 32, "budget.tcz");
+    packed.pyramid.budget = 1;
+    let got = flight(&packed, 40, 0.0);
+    let waiting: Vec<usize> = got
+        .iter()
+        .map(|(_, s)| s.lazy.as_ref().unwrap().levels_waiting)
+        .collect();
+    let drawn: Vec<usize> = got.iter().map(|(_, s)| s.levels_drawn).collect();
+    assert!(waiting[0] > 0, "{waiting:?}");
+    assert!(waiting.windows(2).all(|w| w[1] <= w[0]), "{waiting:?}");
+    assert_eq!(*waiting.last().unwrap(), 0, "{waiting:?}");
+    assert!(drawn[0] < *drawn.last().unwrap(), "{drawn:?}");
+    let want = flight(&direct, 1, 0.0);
+    assert!(got.last().unwrap().0.rgba == want[0].0.rgba);
+}
+
+/// A damaged tile met during a render is an error that names the pack,
+/// the level and the tile, not a panic or wrong heights.
+#[test]
+fn a_damaged_tile_met_by_a_render_is_an_error_naming_it() {
+    use terraclip::render::{render, RenderOptions};
+    let scene = jacksboro_scene_from_pack_tiled(1.0, 64, "damaged-render.tcz");
+    let path = scene.terrain.file.clone().unwrap();
+    let mut b = std::fs::read(&path).unwrap();
+    let last = b.len() - 5;
+    b[last] ^= 0x01;
+    std::fs::write(&path, &b).unwrap();
+    let e = render(&scene, &RenderOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(path.to_str().unwrap()), "{e}");
+    // The file's last bytes are the coarsest level's tile, the first one
+    // any frame decodes.
+    assert!(e.contains("level 8 tile (0, 0): checksum mismatch"), "{e}");
 }

@@ -97,8 +97,16 @@ pub struct UpdateStats {
     /// Coarsest levels left out (inactive) because a lazy pyramid has not
     /// built their tiles yet.
     pub levels_unbuilt: usize,
-    /// Pyramid samples a lazy pyramid built for this update.
+    /// Finest levels left out (inactive) because a pyramid decoded from a
+    /// pack has not decoded their windows within its budget yet.
+    pub levels_waiting: usize,
+    /// Pyramid samples a lazy pyramid built, or a pack decoded, for this
+    /// update.
     pub pyramid_samples: u64,
+    /// Pyramid tiles built or decoded for this update.
+    pub pyramid_tiles: u64,
+    /// Decoded tiles evicted by this update (they left their windows).
+    pub tiles_evicted: u64,
     /// Source rows copied into column blocks ([`columns::BLOCK`] texels
     /// each) for east and west steps: a walk's cost in fresh source reads.
     pub column_rows_copied: u64,
@@ -302,6 +310,7 @@ impl Clipmap {
         // cut back for a budget or an unbuilt level).
         let pristine = self.stats.levels_deferred == 0
             && self.stats.levels_unbuilt == 0
+            && self.stats.levels_waiting == 0
             && self.regions.len() == count;
         let settled = pristine
             && self.pyramid.is_complete()
@@ -332,7 +341,10 @@ impl Clipmap {
         stats.texels_total = 0;
         stats.levels_deferred = 0;
         stats.levels_unbuilt = 0;
+        stats.levels_waiting = 0;
         stats.pyramid_samples = 0;
+        stats.pyramid_tiles = 0;
+        stats.tiles_evicted = 0;
         stats.column_rows_copied = 0;
         if !settled {
             if pristine {
@@ -428,21 +440,29 @@ impl Clipmap {
         let count = self.levels.len();
         let ready = self.build_pyramid(regions, stats);
         let complete = self.pyramid.is_complete();
-        if ready < count {
+        if ready.end < count {
             // The ready levels are drawn as a clipmap of their own: the
             // coarsest of them is cropped only by the map.
             let params = RegionParams {
-                levels: ready,
+                levels: ready.end,
                 ..self.params
             };
             let own = region::compute(&params, viewer);
-            regions[..ready].copy_from_slice(&own);
-            regions[ready..].iter_mut().for_each(|r| r.active = None);
-            stats.levels_unbuilt = count - ready;
+            regions[..ready.end].copy_from_slice(&own);
+            regions[ready.end..]
+                .iter_mut()
+                .for_each(|r| r.active = None);
+            stats.levels_unbuilt = count - ready.end;
         }
+        // Finer levels a pack has not decoded yet wait, as levels past the
+        // texel budget do.
+        regions[..ready.start]
+            .iter_mut()
+            .for_each(|r| r.active = None);
+        stats.levels_waiting = ready.start;
         let mut budget = self.cfg.texel_budget.unwrap_or(u64::MAX);
         let mut deferred_from = None;
-        for l in (0..ready).rev() {
+        for l in ready.clone().rev() {
             let lv = &mut self.levels[l];
             let origin = regions[l].origin;
             if lv.heights.origin() == Some(origin) {
@@ -451,7 +471,7 @@ impl Clipmap {
             // Moved (or first filled), so never empty.
             let rects = toroid::update_rects(lv.heights.origin(), origin, self.n as usize);
             let needed: u64 = rects.iter().map(|r| r.area() as u64).sum();
-            if needed > budget && l + 1 < ready {
+            if needed > budget && l + 1 < ready.end {
                 deferred_from = Some(l);
                 break;
             }
@@ -506,16 +526,17 @@ impl Clipmap {
     }
 
     /// For a lazy pyramid, builds the tiles under each level's window (one
-    /// texel wider, for normals and height bounds), finest first, within
-    /// the pyramid's budget; returns how many levels are ready. The pyramid
-    /// is shared copy-on-write: a clipmap that was cloned builds its own.
+    /// texel wider, for normals and height bounds) within the pyramid's
+    /// budget, or decodes them from a pack; returns the levels ready. The
+    /// pyramid is shared copy-on-write: a clipmap that was cloned builds
+    /// its own.
     fn build_pyramid(
         &mut self,
         regions: &[region::LevelRegions],
         stats: &mut UpdateStats,
-    ) -> usize {
+    ) -> std::ops::Range<usize> {
         if self.pyramid.is_complete() {
-            return self.levels.len();
+            return 0..self.levels.len();
         }
         let n = self.n;
         let windows: Vec<[i64; 4]> = regions
@@ -529,9 +550,11 @@ impl Clipmap {
                 ]
             })
             .collect();
-        let (ready, samples) = Arc::make_mut(&mut self.pyramid).build_around(&windows);
-        stats.pyramid_samples = samples;
-        ready
+        let built = Arc::make_mut(&mut self.pyramid).build_around(&windows);
+        stats.pyramid_samples = built.samples;
+        stats.pyramid_tiles = built.tiles;
+        stats.tiles_evicted = built.evicted;
+        built.ready
     }
 
     /// The vertex stage for level `l` at level texel (x, y): stitching

@@ -517,7 +517,7 @@ pub(crate) fn encode_tile(
 
 /// Decodes tile `bytes` covering `rect` of a level quantised by `quant`,
 /// predicted from `coarse` (`None` on the coarsest level).
-fn decode_tile(
+pub(crate) fn decode_tile(
     bytes: &[u8],
     coarse: Option<&dyn Coarse>,
     quant: Quant,

@@ -76,6 +76,19 @@ impl Header {
     pub fn levels(&self) -> usize {
         self.levels.len()
     }
+    /// Level `l`'s width and height.
+    pub fn level_size(&self, l: usize) -> [usize; 2] {
+        [self.levels[l].width, self.levels[l].height]
+    }
+    /// Level `l`'s least and greatest valid height, as decoded.
+    pub fn level_range(&self, l: usize) -> [f32; 2] {
+        self.levels[l].range
+    }
+    /// Level `l`'s tiles across and down.
+    pub fn tiles_of(&self, l: usize) -> [usize; 2] {
+        let [w, h] = self.level_size(l);
+        [w.div_ceil(self.tile), h.div_ceil(self.tile)]
+    }
 }
 
 impl Header {
@@ -247,7 +260,7 @@ pub struct PackTerrain {
 }
 
 /// The header and where the index starts, from the file's first bytes.
-fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize), String> {
+pub(crate) fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize), String> {
     if !is_pack(bytes) {
         return Err("not a terraclip pack (no TCZPACK magic)".into());
     }
@@ -275,42 +288,106 @@ fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize), String> {
     Ok((header, 20 + len))
 }
 
-fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
-    let (header, mut at) = parse_header(bytes)?;
-    let mut levels = Vec::with_capacity(header.levels.len());
+/// One tile's index entry: where its bytes are, and their CRC-32.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Entry {
+    pub offset: u64,
+    pub len: u32,
+    pub crc: u32,
+}
+
+/// The name errors give tile `t` of level `l` (`nx` tiles across).
+pub(crate) fn tile_name(l: usize, t: usize, nx: usize) -> String {
+    format!("level {l} tile ({}, {})", t % nx, t / nx)
+}
+
+/// The index after the header (which ends at `at`) of a file of
+/// `file_len` bytes whose first bytes are `bytes` (the whole file, or at
+/// least through the index): per level, each tile's entry, checked to lie
+/// inside the file; and where the tiles end, which must be the file's end
+/// ([`check_end`]).
+pub(crate) fn parse_index(
+    bytes: &[u8],
+    header: &Header,
+    mut at: usize,
+    file_len: u64,
+) -> std::result::Result<(Vec<Vec<Entry>>, u64), String> {
+    let mut out = Vec::with_capacity(header.levels.len());
+    let mut total = 0u64;
     for (l, spec) in header.levels.iter().enumerate() {
         let (nx, ny) = (
             spec.width.div_ceil(header.tile),
             spec.height.div_ceil(header.tile),
         );
-        let mut tiles = Vec::with_capacity(nx * ny);
+        let mut entries = Vec::with_capacity(nx * ny);
         for t in 0..nx * ny {
-            let name = || format!("level {l} tile ({}, {})", t % nx, t / nx);
             let entry = bytes
                 .get(at..at + ENTRY)
-                .ok_or_else(|| format!("{}: the index is cut short", name()))?;
+                .ok_or_else(|| format!("{}: the index is cut short", tile_name(l, t, nx)))?;
             at += ENTRY;
-            let off = u64::from_le_bytes(entry[..8].try_into().expect("8 bytes")) as usize;
-            let n = u32::from_le_bytes(entry[8..12].try_into().expect("4 bytes")) as usize;
-            let crc = u32::from_le_bytes(entry[12..16].try_into().expect("4 bytes"));
-            let tile = off
-                .checked_add(n)
-                .and_then(|end| bytes.get(off..end))
-                .ok_or_else(|| {
-                    format!(
-                        "{}: {n} bytes at offset {off} run past the end of the file ({} bytes)",
-                        name(),
-                        bytes.len()
-                    )
-                })?;
-            if crc32fast::hash(tile) != crc {
+            let e = Entry {
+                offset: u64::from_le_bytes(entry[..8].try_into().expect("8 bytes")),
+                len: u32::from_le_bytes(entry[8..12].try_into().expect("4 bytes")),
+                crc: u32::from_le_bytes(entry[12..16].try_into().expect("4 bytes")),
+            };
+            if e.offset
+                .checked_add(e.len as u64)
+                .is_none_or(|end| end > file_len)
+            {
                 return Err(format!(
-                    "{}: checksum mismatch (the tile is damaged)",
-                    name()
+                    "{}: {} bytes at offset {} run past the end of the file ({file_len} bytes)",
+                    tile_name(l, t, nx),
+                    e.len,
+                    e.offset
                 ));
             }
-            tiles.push(tile.to_vec());
+            total += e.len as u64;
+            entries.push(e);
         }
+        out.push(entries);
+    }
+    Ok((out, total + at as u64))
+}
+
+/// The tiles end the file: anything after them is damage, not data.
+pub(crate) fn check_end(end: u64, file_len: u64) -> std::result::Result<(), String> {
+    if end != file_len {
+        return Err(format!(
+            "{file_len} bytes, but the header, index and tiles take {end}"
+        ));
+    }
+    Ok(())
+}
+
+/// The bytes of `e` in `bytes` (the whole file), checked against its CRC.
+pub(crate) fn tile_bytes(
+    bytes: &[u8],
+    e: Entry,
+    name: impl Fn() -> String,
+) -> std::result::Result<&[u8], String> {
+    let tile = bytes
+        .get(e.offset as usize..e.offset as usize + e.len as usize)
+        .ok_or_else(|| format!("{}: the tile runs past the end of the file", name()))?;
+    if crc32fast::hash(tile) != e.crc {
+        return Err(format!(
+            "{}: checksum mismatch (the tile is damaged)",
+            name()
+        ));
+    }
+    Ok(tile)
+}
+
+fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
+    let (header, at) = parse_header(bytes)?;
+    let (index, end) = parse_index(bytes, &header, at, bytes.len() as u64)?;
+    let mut levels = Vec::with_capacity(header.levels.len());
+    for (l, (spec, entries)) in header.levels.iter().zip(&index).enumerate() {
+        let nx = spec.width.div_ceil(header.tile);
+        let tiles = entries
+            .iter()
+            .enumerate()
+            .map(|(t, &e)| tile_bytes(bytes, e, || tile_name(l, t, nx)).map(<[u8]>::to_vec))
+            .collect::<std::result::Result<_, _>>()?;
         levels.push(PackedLevel {
             width: spec.width,
             height: spec.height,
@@ -319,19 +396,8 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
             tiles,
         });
     }
-    // The tiles end the file: anything after them is damage, not data.
-    let end = levels
-        .iter()
-        .flat_map(|l: &PackedLevel| &l.tiles)
-        .map(|t| t.len())
-        .sum::<usize>()
-        + at;
-    if end != bytes.len() {
-        return Err(format!(
-            "{} bytes, but the header, index and tiles take {end}",
-            bytes.len()
-        ));
-    }
+    // After the tiles' checksums, so a tile whose length lies is named.
+    check_end(end, bytes.len() as u64)?;
     let packed = Packed {
         tile: header.tile,
         max_error: header.max_error,
@@ -362,7 +428,7 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
         ));
     }
     let [w, hh] = [h.levels[0].width, h.levels[0].height];
-    crate::terrain::check_dimensions(w as u64, hh as u64)?;
+    crate::terrain::check_side(w as u64, hh as u64)?;
     for (l, pair) in h.levels.windows(2).enumerate() {
         let want = ((pair[0].width - 1) / 2 + 1, (pair[0].height - 1) / 2 + 1);
         if (pair[1].width, pair[1].height) != want {

@@ -6,6 +6,7 @@
 pub mod codec;
 pub mod file;
 pub mod model;
+pub mod reader;
 pub mod stream;
 
 pub use codec::{Lattice, Packed, PackedLevel, Quant, Tile, TileError};

@@ -80,35 +80,46 @@ pub struct LazyStats {
 
 /// Which tiles of one level exist.
 #[derive(Clone, Debug)]
-struct Tiles {
-    nx: usize,
-    ny: usize,
-    done: Vec<bool>,
-    left: usize,
+pub(super) struct Tiles {
+    /// Tile side in samples.
+    pub side: usize,
+    pub nx: usize,
+    pub ny: usize,
+    pub done: Vec<bool>,
+    pub left: usize,
 }
 
 impl Tiles {
-    fn new(l: &PyramidLevel, done: bool) -> Self {
-        let (nx, ny) = (l.width.div_ceil(TILE), l.height.div_ceil(TILE));
+    pub fn new(l: &PyramidLevel, done: bool, side: usize) -> Self {
+        let (nx, ny) = (l.width.div_ceil(side), l.height.div_ceil(side));
         Tiles {
+            side,
             nx,
             ny,
             done: vec![done; nx * ny],
             left: if done { 0 } else { nx * ny },
         }
     }
-    /// Missing tiles that hold level samples of `[x0, x1] × [y0, y1]`
-    /// (clamped to the level), row by row.
-    fn missing<'a>(
-        &'a self,
+    /// Tiles that hold level samples of `[x0, x1] × [y0, y1]` (clamped to
+    /// the level), row by row.
+    pub fn under(
+        &self,
         l: &PyramidLevel,
         [x0, y0, x1, y1]: [i64; 4],
-    ) -> impl Iterator<Item = [usize; 2]> + 'a {
-        let t = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize / TILE;
+    ) -> impl Iterator<Item = [usize; 2]> {
+        let side = self.side;
+        let t = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize / side;
         let (i0, i1) = (t(x0.min(x1), l.width), t(x1.max(x0), l.width));
         let (j0, j1) = (t(y0.min(y1), l.height), t(y1.max(y0), l.height));
-        (j0..=j1)
-            .flat_map(move |j| (i0..=i1).map(move |i| [i, j]))
+        (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| [i, j]))
+    }
+    /// The missing ones of [`Tiles::under`].
+    pub fn missing<'a>(
+        &'a self,
+        l: &PyramidLevel,
+        rect: [i64; 4],
+    ) -> impl Iterator<Item = [usize; 2]> + 'a {
+        self.under(l, rect)
             .filter(|&[i, j]| !self.done[j * self.nx + i])
     }
 }
@@ -126,7 +137,7 @@ pub(super) struct Lazy {
 
 /// A level no tile of which is built yet: zeroed arrays straight from the
 /// allocator (no page touched), bounds that hold nothing.
-fn unbuilt(width: usize, height: usize) -> PyramidLevel {
+pub(super) fn unbuilt(width: usize, height: usize) -> PyramidLevel {
     PyramidLevel {
         width,
         height,
@@ -192,7 +203,7 @@ impl Pyramid {
         let tiles: Vec<Tiles> = levels
             .iter()
             .enumerate()
-            .map(|(l, lv)| Tiles::new(lv, done && l == 0))
+            .map(|(l, lv)| Tiles::new(lv, done && l == 0, TILE))
             .collect();
         let ranges = levels
             .iter()
@@ -208,6 +219,7 @@ impl Pyramid {
             filter,
             levels,
             ranges,
+            decoded: None,
             lazy: Some(Box::new(Lazy {
                 source,
                 kernel: filter.kernel(),
@@ -222,29 +234,36 @@ impl Pyramid {
         })
     }
 
-    /// True when every sample of every level exists.
+    /// True when every sample of every level exists (never for a decoded
+    /// pyramid, which evicts what its windows leave).
     pub fn is_complete(&self) -> bool {
-        self.lazy.is_none()
+        self.lazy.is_none() && self.decoded.is_none()
     }
 
-    /// Progress of a lazy pyramid, also once complete (`None` for one
-    /// built eagerly).
+    /// Progress of a lazy or decoded pyramid, also once complete (`None`
+    /// for one built eagerly).
     pub fn lazy_stats(&self) -> Option<LazyStats> {
         self.progress
     }
 
-    /// Builds what level l needs at level texels `windows[l]` (inclusive
-    /// `[x0, y0, x1, y1]`, clamped to the level), finest level first, within
-    /// this call's budget; level 0's window is built whatever the budget, so
-    /// there is always something to draw. Returns how many levels, from the
-    /// finest, are ready (all of them for a whole pyramid) and the samples
-    /// this call built.
-    pub fn build_around(&mut self, windows: &[[i64; 4]]) -> (usize, u64) {
+    /// Builds (or, from a pack, decodes) what level l needs at level texels
+    /// `windows[l]` (inclusive `[x0, y0, x1, y1]`, clamped to the level),
+    /// within this call's budget, and says which levels are ready (all of
+    /// them for a whole pyramid). A filtered lazy pyramid builds finest
+    /// first, level 0's window whatever the budget; a decoded one coarse to
+    /// fine ([`super::decoded`]).
+    pub fn build_around(&mut self, windows: &[[i64; 4]]) -> super::Built {
+        if self.decoded.is_some() {
+            return self.decode_around(windows);
+        }
         let Some(z) = &self.lazy else {
-            return (windows.len().min(self.levels.len()), 0);
+            return super::Built {
+                ready: 0..windows.len().min(self.levels.len()),
+                ..Default::default()
+            };
         };
         let mut budget = z.budget;
-        let before = self.progress.map_or(0, |p| p.samples_built);
+        let before = self.progress.unwrap_or_default();
         let mut ready = 0;
         for (l, &w) in windows.iter().enumerate().take(self.levels.len()) {
             let mut unlimited = u64::MAX;
@@ -254,9 +273,14 @@ impl Pyramid {
             }
             ready = l + 1;
         }
-        let built = self.lazy_stats().map_or(0, |s| s.samples_built - before);
+        let after = self.progress.unwrap_or_default();
         self.finish_if_complete();
-        (ready, built)
+        super::Built {
+            ready: 0..ready,
+            samples: after.samples_built - before.samples_built,
+            tiles: after.tiles_built - before.tiles_built,
+            evicted: 0,
+        }
     }
 
     /// Builds the missing tiles of level `l` over `rect`, and first what

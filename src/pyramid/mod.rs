@@ -13,10 +13,12 @@
 //! No-data texels take no part in the weights; a coarse sample is no-data
 //! where the fine sample under it is.
 
+mod decoded;
 pub(crate) mod downsample;
 mod lazy;
 
 use crate::terrain::Heightmap;
+pub use decoded::{Built, TileSource};
 use downsample::downsample;
 pub use lazy::{LazyBase, LazyStats, TILE};
 use rayon::prelude::*;
@@ -289,6 +291,8 @@ pub struct Pyramid {
     /// For a pyramid built on demand: which tiles exist and how to make the
     /// rest (`None` once every level is complete).
     lazy: Option<Box<lazy::Lazy>>,
+    /// For a pyramid decoded from a pack as windows reach its tiles.
+    decoded: Option<Box<decoded::Decoded>>,
     /// A lazy pyramid's progress, kept after it completes.
     progress: Option<LazyStats>,
 }
@@ -353,6 +357,7 @@ impl Pyramid {
             ranges: vec![RangeGrid::new(&base)],
             levels: vec![base],
             lazy: None,
+            decoded: None,
             progress: None,
         };
         p.extend_to(count);
@@ -367,6 +372,7 @@ impl Pyramid {
             ranges: levels.iter().map(RangeGrid::new).collect(),
             levels,
             lazy: None,
+            decoded: None,
             progress: None,
         }
     }

@@ -6,6 +6,7 @@ use crate::error::{Error, Result};
 use crate::frame::stats::{Pass, Passes};
 use crate::frame::{Frame, FrameInput};
 use crate::lod::{Lod, LodConfig, LodUpdate, View};
+use crate::pack::reader::PackReader;
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
@@ -89,7 +90,8 @@ pub struct RenderStats {
     pub lightmap_rays: usize,
     /// Normals computed: per vertex, plus normal-map texels.
     pub normals_computed: usize,
-    /// With `pyramid.lazy`: what the pyramid has built (absent otherwise).
+    /// With `pyramid.lazy`, or a pack decoded tile by tile: what the
+    /// pyramid has built or decoded (absent otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub lazy: Option<LazyFrame>,
     /// The CPU raster and shading build that ran ([`crate::raster::Path::label`]:
@@ -104,10 +106,21 @@ pub struct LazyFrame {
     /// Tiles and samples built so far.
     #[serde(flatten)]
     pub pyramid: LazyStats,
-    /// Samples built for this frame.
+    /// Samples built (or decoded from a pack) for this frame.
     pub samples_this_frame: u64,
+    /// Tiles built (or decoded) for this frame.
+    pub tiles_this_frame: u64,
     /// Coarsest levels not drawn because their tiles are not built yet.
     pub levels_unbuilt: usize,
+    /// Finest levels not drawn because a pack's tiles under them are not
+    /// decoded yet (the decoding budget ran out).
+    pub levels_waiting: usize,
+    /// A pack only: decoded tiles held now, and evicted for this frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tiles_resident: Option<u64>,
+    /// (with `tiles_resident`)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tiles_evicted: Option<u64>,
 }
 
 impl RenderStats {
@@ -230,26 +243,46 @@ impl Session {
         let effects = Effects::from_list(&scene.effects).map_err(|r| Error::value("effects", r))?;
         let cfg = LodConfig::from_spec(&scene.lod, effects.morph)?;
         let pack = crate::pack::file::pack_path(&scene.terrain, &scene.base_dir);
+        // A pack under a clipmap that reads only its windows is decoded
+        // tile by tile as the windows reach them (LH04); other schemes and
+        // the effects that read the whole map get it decoded whole.
+        let incremental = scene.lod.scheme == crate::scene::LodScheme::Clipmap
+            && !effects.shadows
+            && !effects.normal_map;
         let (pyramid, world) = if let Some(path) = pack {
             if scene.pyramid.lazy {
                 return Err(Error::value(
                     "pyramid.lazy",
-                    "a pack is decoded whole for now; set lazy = false",
+                    "a pack is already decoded tile by tile as the clipmap needs it; remove lazy",
                 ));
             }
-            let crate::pack::file::PackTerrain {
-                mut levels,
-                cell_size,
-                filter: made_with,
-            } = passes.time("terrain", || {
-                crate::pack::file::read_terrain(&scene.terrain, &path)
-            })?;
-            let count = cfg.pyramid_levels(levels[0].width, levels[0].height);
-            levels.truncate(count.max(1));
-            let world = WorldMap::for_terrain(&scene.terrain, cell_size);
-            // The pack's levels were made with its own filter.
-            filter = made_with;
-            (Pyramid::from_levels(levels, made_with), world)
+            if incremental {
+                let reader = passes.time("terrain", || PackReader::open(&path))?;
+                let h = reader.header();
+                let made_with = Filter::parse(&h.filter).map_err(|r| Error::file(&path, r))?;
+                let world = WorldMap::for_terrain(
+                    &scene.terrain,
+                    crate::pack::file::cell_size(&scene.terrain, h),
+                );
+                filter = made_with;
+                let p = Pyramid::decoded(Arc::new(reader), made_with, scene.pyramid.budget)
+                    .map_err(|r| Error::file(&path, r))?;
+                (p, world)
+            } else {
+                let crate::pack::file::PackTerrain {
+                    mut levels,
+                    cell_size,
+                    filter: made_with,
+                } = passes.time("terrain", || {
+                    crate::pack::file::read_terrain(&scene.terrain, &path)
+                })?;
+                let count = cfg.pyramid_levels(levels[0].width, levels[0].height);
+                levels.truncate(count.max(1));
+                let world = WorldMap::for_terrain(&scene.terrain, cell_size);
+                // The pack's levels were made with its own filter.
+                filter = made_with;
+                (Pyramid::from_levels(levels, made_with), world)
+            }
         } else if scene.pyramid.lazy {
             let (base, world) = passes.time("terrain", || {
                 LazyBase::for_terrain(&scene.terrain, &scene.base_dir)
@@ -302,6 +335,9 @@ impl Session {
         passes: &mut Passes,
     ) -> Result<(Frame, Option<ClipFrame>)> {
         self.update(camera, passes);
+        if let Some(e) = self.pyramid().decode_error() {
+            return Err(e);
+        }
         let frustum = camera.frustum();
         let view = View::new(camera, &frustum, &self.world, self.size);
         let lod = &mut self.lod;
@@ -400,7 +436,14 @@ impl Session {
         self.pyramid().lazy_stats().map(|pyramid| LazyFrame {
             pyramid,
             samples_this_frame: update.map_or(0, |u| u.pyramid_samples),
+            tiles_this_frame: update.map_or(0, |u| u.pyramid_tiles),
             levels_unbuilt: update.map_or(0, |u| u.levels_unbuilt),
+            levels_waiting: update.map_or(0, |u| u.levels_waiting),
+            tiles_resident: self.pyramid().tiles_resident(),
+            tiles_evicted: self
+                .pyramid()
+                .tiles_resident()
+                .map(|_| update.map_or(0, |u| u.tiles_evicted)),
         })
     }
 

@@ -27,6 +27,13 @@ pub struct FlyFrame {
     pub changes: u64,
     /// Triangles drawn.
     pub triangles: usize,
+    /// Clipmap levels drawn.
+    pub levels_drawn: usize,
+    /// Pyramid samples a lazy pyramid built, or a pack decoded, for the
+    /// frame (0 for a whole pyramid).
+    pub pyramid_samples: u64,
+    /// The tiles they came in.
+    pub pyramid_tiles: u64,
     /// Against the previous frame (metrics::popping); 0 for the first
     /// frame, for brute force itself and with popping off.
     pub popping: f64,
@@ -45,6 +52,9 @@ pub struct FlyReport {
     pub texels_updated: u64,
     /// The largest popping of any frame.
     pub popping_max: f64,
+    /// The process's peak resident memory after the flight (bytes; 0 where
+    /// the platform does not say).
+    pub peak_rss_bytes: u64,
 }
 
 /// Flies `frames` frames from the scene's camera, `step` metres per frame
@@ -91,6 +101,9 @@ pub fn fly(
             texels_updated: session.last_update.texels_updated,
             changes: session.last_update.changes,
             triangles: stats.triangles,
+            levels_drawn: stats.levels_drawn,
+            pyramid_samples: stats.lazy.as_ref().map_or(0, |z| z.samples_this_frame),
+            pyramid_tiles: stats.lazy.as_ref().map_or(0, |z| z.tiles_this_frame),
             popping: pop,
         });
         each(i, &img)?;
@@ -102,6 +115,7 @@ pub fn fly(
         mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
         texels_updated: later.iter().map(|f| f.texels_updated).sum(),
         popping_max: out.iter().map(|f| f.popping).fold(0.0, f64::max),
+        peak_rss_bytes: crate::studies::scaling::peak_rss().unwrap_or(0),
         frames: out,
     })
 }

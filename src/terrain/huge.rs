@@ -1,4 +1,5 @@
-//! Large arrays on huge pages where the kernel grants them.
+//! Large arrays on huge pages where the kernel grants them, and the
+//! page-level care of sparse arrays and large mappings.
 //!
 //! A pyramid level of a 32768-wide map has a 4 KB page per 1,024 texels of
 //! a row, so reading down a column, or a window's rows, misses the TLB on
@@ -54,9 +55,92 @@ fn advise(ptr: *mut u8, bytes: usize) {
 #[cfg(not(target_os = "linux"))]
 fn advise(_ptr: *mut u8, _bytes: usize) {}
 
+/// Types whose all-zero bytes are a valid value (0.0, false), which
+/// [`release`] may leave in their place.
+pub trait ZeroIsValid: Copy {}
+impl ZeroIsValid for f32 {}
+impl ZeroIsValid for bool {}
+
+/// The whole 4 KB pages inside `s`, as (start, bytes), if any.
+#[cfg(target_os = "linux")]
+fn inner_pages<T>(s: &[T]) -> Option<(usize, usize)> {
+    const PAGE: usize = 4096;
+    let a = (s.as_ptr() as usize).next_multiple_of(PAGE);
+    let b = (s.as_ptr() as usize + std::mem::size_of_val(s)) / PAGE * PAGE;
+    (b > a).then(|| (a, b - a))
+}
+
+/// Keeps `s` on small pages even where transparent huge pages are
+/// `always`: for a large array filled sparsely (a decoded pack's levels),
+/// whose every touched sample would otherwise make 2 MB resident.
+pub fn small_pages<T>(s: &mut [T]) {
+    #[cfg(target_os = "linux")]
+    if let Some((start, bytes)) = inner_pages(s) {
+        // SAFETY: the range lies inside `s`; the advice changes how its
+        // pages are backed, never their contents.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, bytes, libc::MADV_NOHUGEPAGE);
+        }
+    }
+}
+
+/// Gives the whole pages inside `s` back to the kernel: they read as
+/// zeros afterwards, and are no longer resident. For samples a sparse
+/// level no longer holds (tiles evicted), where zero is any value's
+/// stand-in until they are written again. Where not Linux, nothing is
+/// given back (the values stay).
+pub fn release<T: ZeroIsValid>(s: &mut [T]) {
+    #[cfg(target_os = "linux")]
+    if let Some((start, bytes)) = inner_pages(s) {
+        // SAFETY: the range lies inside `s`, which this call borrows
+        // mutably; the kernel refills private anonymous pages with zeros,
+        // a valid value of every `ZeroIsValid` type.
+        unsafe {
+            libc::madvise(start as *mut libc::c_void, bytes, libc::MADV_DONTNEED);
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = s;
+}
+
+/// Drops the pages of bytes `range` of a read-only file mapping from this
+/// process (they stay in the page cache): a reader that goes through a
+/// large file once keeps its resident memory to what it is reading.
+pub fn drop_mapped(map: &memmap2::Mmap, range: std::ops::Range<usize>) {
+    const PAGE: usize = 4096;
+    let start = range.start / PAGE * PAGE;
+    let end = range.end.min(map.len());
+    if end > start {
+        // SAFETY: a read-only private mapping of a file: dropped pages are
+        // read from the file again if touched, with the same contents.
+        let _ = unsafe {
+            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, end - start)
+        };
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Exactly the samples in whole pages inside the slice read zero
+    /// afterwards; the others, and a slice holding no whole page, keep
+    /// their values.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn release_zeroes_the_whole_pages_inside_only() {
+        let mut v: Vec<f32> = (0..20_000).map(|i| i as f32 + 1.0).collect();
+        release(&mut v[5..700]);
+        assert!(v.iter().enumerate().all(|(i, &x)| x == i as f32 + 1.0));
+        release(&mut v[100..9000]);
+        let at = |i: usize| v.as_ptr() as usize + 4 * i;
+        let (a, b) = (at(100).next_multiple_of(4096), at(9000) / 4096 * 4096);
+        assert!(b - a >= 2 * 4096);
+        for (i, &x) in v.iter().enumerate() {
+            let gone = (a..b).contains(&at(i));
+            assert_eq!(x, if gone { 0.0 } else { i as f32 + 1.0 }, "sample {i}");
+        }
+    }
 
     #[test]
     fn filled_holds_the_value_on_small_and_huge_pages() {

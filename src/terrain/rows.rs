@@ -196,16 +196,8 @@ impl RowSource for RawRows {
             .get(a..b)
             .ok_or_else(|| Error::file(&self.path, format!("rows {y0}..{y1} are past the end")))?;
         let out = self.raw.decode(bytes).collect();
-        // Drop the band's pages from this process (they stay in the page
-        // cache): resident memory then follows the band, not the file.
-        let page = 4096;
-        let start = a / page * page;
-        // SAFETY: a read-only private mapping of a file: dropped pages are
-        // read from the file again if touched, with the same contents.
-        let _ = unsafe {
-            self.map
-                .unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, b - start)
-        };
+        // Resident memory then follows the band, not the file.
+        super::huge::drop_mapped(&self.map, a..b);
         Ok(out)
     }
     fn cell_size(&self) -> [f64; 2] {

@@ -1,0 +1,369 @@
+//! The pyramid decoded from a pack tile by tile, as the clipmap's windows
+//! reach them: LH04's incremental decompression.
+//!
+//! - Levels are full-size arrays that no page of is touched until a tile
+//!   is decoded into it, kept on small pages, so memory follows what is
+//!   decoded.
+//! - A tile of level l is predicted from level l + 1 around it, so an
+//!   update decodes coarse to fine: for each level's window, the missing
+//!   tiles under it and, first, the coarser tiles those read, up to the
+//!   pack's coarsest level.
+//! - Each update decodes about `budget` samples. The coarsest drawn
+//!   level's window is decoded whatever the budget, so there is always
+//!   something to draw; a finer level whose window is not complete waits
+//!   (is not drawn), with every level finer than it: LH04's graceful
+//!   degradation, the reverse of the filtered lazy pyramid's.
+//! - Tiles more than one tile away from their level's window are evicted:
+//!   marked missing, and the pages only they used given back
+//!   ([`crate::terrain::huge::release`]), so a flight of any length over a
+//!   map of any size holds a few tiles per level.
+//! - A tile that fails to decode (a damaged pack) stays missing, and the
+//!   pyramid keeps the first error for the session to report.
+
+use super::lazy::{unbuilt, Tiles};
+use super::{Filter, Pyramid, PyramidLevel, RangeGrid, RANGE_TILE};
+use crate::terrain::huge;
+use rayon::prelude::*;
+use std::collections::HashSet;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Levels that come decoded a tile at a time, each tile from the coarser
+/// level around it (a pack).
+pub trait TileSource: Send + Sync + std::fmt::Debug {
+    /// The file the tiles come from, for errors.
+    fn path(&self) -> &Path;
+    /// Each level's width and height, finest first.
+    fn sizes(&self) -> Vec<[usize; 2]>;
+    /// Each level's least and greatest valid height, as decoded.
+    fn ranges(&self) -> Vec<[f32; 2]>;
+    /// Tile side in samples.
+    fn tile(&self) -> usize;
+    /// The samples of level l + 1 (inclusive `[x0, y0, x1, y1]`, clamped
+    /// by the reader) that tile `t` of level `l` is predicted from; `None`
+    /// on the coarsest level.
+    fn reads(&self, l: usize, t: [usize; 2]) -> Option<[i64; 4]>;
+    /// Tile `t` of level `l` (heights and no-data flags, row-major over the
+    /// tile), with level l + 1 as `coarse` where [`TileSource::reads`]
+    /// says. Errors name the level and the tile.
+    fn decode(
+        &self,
+        l: usize,
+        t: [usize; 2],
+        coarse: &PyramidLevel,
+    ) -> Result<(Vec<f32>, Vec<bool>), String>;
+}
+
+/// The decoding part of a [`Pyramid`].
+#[derive(Clone, Debug)]
+pub(super) struct Decoded {
+    src: Arc<dyn TileSource>,
+    tiles: Vec<Tiles>,
+    /// Decoded tiles per level, for eviction.
+    resident: Vec<Vec<[usize; 2]>>,
+    /// Samples one update may decode.
+    budget: u64,
+    /// The first tile that failed to decode.
+    error: Option<String>,
+}
+
+/// What one call of [`Pyramid::build_around`] did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Built {
+    /// The levels ready to draw: `0..k` for a filtered lazy pyramid (the
+    /// coarser ones wait), `k..count` for a decoded one (the finer wait).
+    pub ready: std::ops::Range<usize>,
+    /// Samples built or decoded.
+    pub samples: u64,
+    /// Tiles built or decoded.
+    pub tiles: u64,
+    /// Tiles evicted.
+    pub evicted: u64,
+}
+
+impl Pyramid {
+    /// A pyramid of every level of `src`, decoded as
+    /// [`Pyramid::build_around`] asks, about `budget` samples per call.
+    pub fn decoded(
+        src: Arc<dyn TileSource>,
+        filter: Filter,
+        budget: u64,
+    ) -> Result<Pyramid, String> {
+        if budget == 0 {
+            return Err("the decoding budget must be at least 1 sample".into());
+        }
+        let (sizes, ranges) = (src.sizes(), src.ranges());
+        if sizes.is_empty() || sizes.len() != ranges.len() {
+            return Err("a pack of no level".into());
+        }
+        let levels: Vec<PyramidLevel> = sizes
+            .iter()
+            .zip(&ranges)
+            .map(|(&[w, h], &[lo, hi])| {
+                let mut l = unbuilt(w, h);
+                huge::small_pages(&mut l.data);
+                huge::small_pages(&mut l.nodata);
+                (l.min, l.max) = (lo, hi);
+                l
+            })
+            .collect();
+        let side = src.tile();
+        let tiles: Vec<Tiles> = levels.iter().map(|l| Tiles::new(l, false, side)).collect();
+        let tiles_total = tiles.iter().map(|t| (t.nx * t.ny) as u64).sum();
+        Ok(Pyramid {
+            filter,
+            ranges: levels.iter().map(RangeGrid::empty).collect(),
+            levels,
+            lazy: None,
+            decoded: Some(Box::new(Decoded {
+                src,
+                resident: vec![Vec::new(); tiles.len()],
+                tiles,
+                budget,
+                error: None,
+            })),
+            progress: Some(super::LazyStats {
+                tiles_built: 0,
+                tiles_total,
+                samples_built: 0,
+            }),
+        })
+    }
+
+    /// The first tile a decoded pyramid failed to decode, as an error that
+    /// names the pack, the level and the tile.
+    pub fn decode_error(&self) -> Option<crate::Error> {
+        let d = self.decoded.as_ref()?;
+        let e = d.error.as_ref()?;
+        Some(crate::Error::file(d.src.path(), e.clone()))
+    }
+
+    /// Tiles a decoded pyramid holds now, every level counted.
+    pub fn tiles_resident(&self) -> Option<u64> {
+        let d = self.decoded.as_ref()?;
+        Some(d.resident.iter().map(|r| r.len() as u64).sum())
+    }
+
+    /// [`Pyramid::build_around`] for a decoded pyramid.
+    pub(super) fn decode_around(&mut self, windows: &[[i64; 4]]) -> Built {
+        let before = self.progress.unwrap_or_default();
+        let top = self.levels.len() - 1;
+        let count = windows.len().min(self.levels.len());
+        let mut budget = self.decoded.as_ref().map_or(0, |d| d.budget);
+        let mut first = count;
+        for k in (0..count).rev() {
+            // The coarsest drawn level whatever the budget.
+            let unlimited = k + 1 == count;
+            let plan = self.plan(k, windows[k], top);
+            for (j, want) in plan.iter().enumerate().rev() {
+                let d = self.decoded.as_ref().expect("decoded pyramid");
+                let mut batch = Vec::with_capacity(want.len());
+                for &t in want {
+                    if !unlimited && budget == 0 {
+                        break;
+                    }
+                    let ready = match d.src.reads(k + j, t) {
+                        Some(r) if k + j < top => d.tiles[k + j + 1]
+                            .missing(&self.levels[k + j + 1], r)
+                            .next()
+                            .is_none(),
+                        _ => true,
+                    };
+                    if ready {
+                        budget = budget.saturating_sub(self.tile_samples(k + j, t));
+                        batch.push(t);
+                    }
+                }
+                self.decode_tiles(k + j, &batch);
+            }
+            let d = self.decoded.as_ref().expect("decoded pyramid");
+            if d.tiles[k]
+                .missing(&self.levels[k], windows[k])
+                .next()
+                .is_some()
+            {
+                break;
+            }
+            first = k;
+        }
+        let evicted = self.evict(&windows[..count]);
+        let after = self.progress.unwrap_or_default();
+        Built {
+            ready: first..count,
+            samples: after.samples_built - before.samples_built,
+            tiles: after.tiles_built - before.tiles_built,
+            evicted,
+        }
+    }
+
+    /// Samples of tile `t` of level `l`.
+    fn tile_samples(&self, l: usize, [i, j]: [usize; 2]) -> u64 {
+        let side = self.decoded.as_ref().map_or(1, |d| d.src.tile());
+        let lv = &self.levels[l];
+        let w = ((i + 1) * side).min(lv.width) - i * side;
+        let h = ((j + 1) * side).min(lv.height) - j * side;
+        (w * h) as u64
+    }
+
+    /// The missing tiles level `k`'s window `rect` needs, per level from
+    /// `k` (index 0) to `top`: those under the window, then the coarser
+    /// ones each of those reads.
+    fn plan(&self, k: usize, rect: [i64; 4], top: usize) -> Vec<Vec<[usize; 2]>> {
+        let d = self.decoded.as_ref().expect("decoded pyramid");
+        let mut plan = vec![d.tiles[k]
+            .missing(&self.levels[k], rect)
+            .collect::<Vec<_>>()];
+        for j in k..top {
+            let below = plan.last().expect("one level planned");
+            if below.is_empty() {
+                break;
+            }
+            let mut seen = HashSet::new();
+            let mut next = Vec::new();
+            for &t in below {
+                let Some(r) = d.src.reads(j, t) else { continue };
+                for u in d.tiles[j + 1].missing(&self.levels[j + 1], r) {
+                    if seen.insert(u) {
+                        next.push(u);
+                    }
+                }
+            }
+            plan.push(next);
+        }
+        plan
+    }
+
+    /// Decodes tiles `ts` of level `l` (what they read exists) in
+    /// parallel, then writes them into the level and its range grid.
+    fn decode_tiles(&mut self, l: usize, ts: &[[usize; 2]]) {
+        if ts.is_empty() {
+            return;
+        }
+        let Pyramid {
+            levels,
+            ranges,
+            decoded,
+            progress,
+            ..
+        } = self;
+        let d = decoded.as_mut().expect("decoded pyramid");
+        let progress = progress.as_mut().expect("decoded pyramid");
+        let (fine, coarse) = levels.split_at_mut(l + 1);
+        let dst = &mut fine[l];
+        let empty = PyramidLevel {
+            width: 1,
+            height: 1,
+            data: vec![0.0],
+            nodata: vec![false],
+            min: 0.0,
+            max: 0.0,
+        };
+        let c = coarse.first().unwrap_or(&empty);
+        let src = &d.src;
+        let made: Vec<_> = ts.par_iter().map(|&t| src.decode(l, t, c)).collect();
+        let side = d.src.tile();
+        let w = dst.width;
+        for (&t, result) in ts.iter().zip(made) {
+            let (v, nd) = match result {
+                Ok(tile) => tile,
+                Err(e) => {
+                    d.error.get_or_insert(e);
+                    continue;
+                }
+            };
+            let (x0, y0) = (t[0] * side, t[1] * side);
+            let (x1, y1) = ((x0 + side).min(w), (y0 + side).min(dst.height));
+            let tw = x1 - x0;
+            for (y, (row, row_nd)) in (y0..y1).zip(v.chunks_exact(tw).zip(nd.chunks_exact(tw))) {
+                dst.data[y * w + x0..y * w + x1].copy_from_slice(row);
+                dst.nodata[y * w + x0..y * w + x1].copy_from_slice(row_nd);
+            }
+            // Range tiles the tile overlaps take the union of their parts,
+            // so they are whole once every part has been decoded (a part
+            // evicted and decoded again gives the same bounds).
+            let g = &mut ranges[l];
+            for j in y0 / RANGE_TILE..y1.div_ceil(RANGE_TILE) {
+                for i in x0 / RANGE_TILE..x1.div_ceil(RANGE_TILE) {
+                    let (ya, yb) = ((j * RANGE_TILE).max(y0), ((j + 1) * RANGE_TILE).min(y1));
+                    let (xa, xb) = ((i * RANGE_TILE).max(x0), ((i + 1) * RANGE_TILE).min(x1));
+                    let b = &mut g.bounds[j * g.tiles_x + i];
+                    for y in ya..yb {
+                        for &h in &dst.data[y * w + xa..y * w + xb] {
+                            *b = [b[0].min(h), b[1].max(h)];
+                        }
+                    }
+                }
+            }
+            let tiles = &mut d.tiles[l];
+            tiles.done[t[1] * tiles.nx + t[0]] = true;
+            tiles.left -= 1;
+            d.resident[l].push(t);
+            progress.tiles_built += 1;
+            progress.samples_built += ((x1 - x0) * (y1 - y0)) as u64;
+        }
+    }
+
+    /// Evicts the tiles of each drawn level that lie more than a tile from
+    /// its window, giving back the pages only they used; returns how many.
+    /// The levels coarser than the drawn ones stay (they are small).
+    fn evict(&mut self, windows: &[[i64; 4]]) -> u64 {
+        let Pyramid {
+            levels, decoded, ..
+        } = self;
+        let d = decoded.as_mut().expect("decoded pyramid");
+        let side = d.src.tile();
+        let mut evicted = 0;
+        for (l, &[x0, y0, x1, y1]) in windows.iter().enumerate() {
+            let g = side as i64;
+            let keep = |[i, j]: [usize; 2]| {
+                let (a, b) = (i as i64 * g, j as i64 * g);
+                a + g > x0 - g && a <= x1 + g && b + g > y0 - g && b <= y1 + g
+            };
+            let (resident, tiles) = (&mut d.resident[l], &mut d.tiles[l]);
+            let mut gone = Vec::new();
+            resident.retain(|&t| {
+                let k = keep(t);
+                if !k {
+                    gone.push(t);
+                }
+                k
+            });
+            if gone.is_empty() {
+                continue;
+            }
+            for &[i, j] in &gone {
+                tiles.done[j * tiles.nx + i] = false;
+                tiles.left += 1;
+            }
+            evicted += gone.len() as u64;
+            release_runs(&mut levels[l], tiles, &gone);
+        }
+        evicted
+    }
+}
+
+/// Gives back the pages of the runs of missing tiles that hold the tiles
+/// `gone` (just evicted), row by row: a page is shared by the tiles beside
+/// each other in a row, so only a run of missing ones frees any.
+fn release_runs(lv: &mut PyramidLevel, tiles: &Tiles, gone: &[[usize; 2]]) {
+    let side = tiles.side;
+    let mut runs: Vec<(usize, usize, usize)> = gone
+        .iter()
+        .map(|&[i, j]| {
+            let row = &tiles.done[j * tiles.nx..(j + 1) * tiles.nx];
+            let a = row[..i].iter().rposition(|&d| d).map_or(0, |p| p + 1);
+            let b = row[i..].iter().position(|&d| d).map_or(tiles.nx, |p| i + p);
+            (j, a, b)
+        })
+        .collect();
+    runs.sort_unstable();
+    runs.dedup();
+    let w = lv.width;
+    for (j, a, b) in runs {
+        let (x0, x1) = (a * side, (b * side).min(w));
+        for y in j * side..((j + 1) * side).min(lv.height) {
+            huge::release(&mut lv.data[y * w + x0..y * w + x1]);
+            huge::release(&mut lv.nodata[y * w + x0..y * w + x1]);
+        }
+    }
+}
