@@ -773,14 +773,7 @@ impl Packed {
     ) -> Result<PyramidLevel, TileError> {
         let lv = &self.levels[l];
         let [nx, ny] = self.tiles_of(l);
-        let empty = PyramidLevel {
-            width: 1,
-            height: 1,
-            data: vec![0.0],
-            nodata: vec![false],
-            min: 0.0,
-            max: 0.0,
-        };
+        let empty = PyramidLevel::single();
         let c = coarse.unwrap_or(&empty);
         let tiles: Vec<Tile> = (0..nx * ny)
             .into_par_iter()

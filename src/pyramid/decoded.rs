@@ -250,14 +250,7 @@ impl Pyramid {
         let progress = progress.as_mut().expect("decoded pyramid");
         let (fine, coarse) = levels.split_at_mut(l + 1);
         let dst = &mut fine[l];
-        let empty = PyramidLevel {
-            width: 1,
-            height: 1,
-            data: vec![0.0],
-            nodata: vec![false],
-            min: 0.0,
-            max: 0.0,
-        };
+        let empty = PyramidLevel::single();
         let c = coarse.first().unwrap_or(&empty);
         let src = &d.src;
         let made: Vec<_> = ts.par_iter().map(|&t| src.decode(l, t, c)).collect();

@@ -183,6 +183,19 @@ impl PyramidLevel {
         })
     }
 
+    /// A level of one sample: what a coarsest level, which nothing
+    /// predicts, is given as its coarser one.
+    pub fn single() -> Self {
+        PyramidLevel {
+            width: 1,
+            height: 1,
+            data: vec![0.0],
+            nodata: vec![false],
+            min: 0.0,
+            max: 0.0,
+        }
+    }
+
     /// The whole level as [`Rows`].
     pub fn rows(&self) -> Rows<'_> {
         Rows {
