@@ -682,3 +682,51 @@ fn a_damaged_tile_met_by_a_render_is_an_error_naming_it() {
     // any frame decodes.
     assert!(e.contains("level 8 tile (0, 0): checksum mismatch"), "{e}");
 }
+
+/// Any window of any level decoded from the mapped pack alone (its tiles
+/// and the coarser ones they are predicted from, nothing else) has the
+/// bits of the whole decode there.
+#[test]
+fn a_window_decoded_alone_equals_the_whole_decode() {
+    use std::sync::Arc;
+    use terraclip::pack::{file, reader::PackReader};
+    let (map, lattice) = jacksboro();
+    let (packed, _) = Packed::encode(&levels_of(&map), 0.5, 32, Some(lattice));
+    let path = tmp("window.tcz");
+    file::write(&path, &packed, map.cell_size, "sinc-blackman:11", "j").unwrap();
+    let whole = packed.decode().unwrap();
+    for (l, rect) in [
+        (0, [0i64, 0, 402, 343]),
+        (0, [150, 77, 151, 77]),
+        (0, [31, 31, 32, 32]),
+        (1, [60, 10, 140, 171]),
+        (3, [0, 0, 0, 0]),
+        (8, [0, 0, 1, 1]),
+    ] {
+        let reader = PackReader::open(&path).unwrap();
+        let mut p = Pyramid::decoded(Arc::new(reader), Filter::default(), 1).unwrap();
+        p.decode_window(l, rect).unwrap();
+        let (a, b) = (&p.levels[l], &whole[l]);
+        for y in rect[1]..=rect[3] {
+            for x in rect[0]..=rect[2] {
+                let i = y as usize * b.width + x as usize;
+                assert_eq!(
+                    a.data[i].to_bits(),
+                    b.data[i].to_bits(),
+                    "level {l} ({x}, {y})"
+                );
+                assert_eq!(a.nodata[i], b.nodata[i]);
+            }
+        }
+        // Only what the window needed: its own tiles on level l.
+        let tiles = p.lazy_stats().unwrap().tiles_built;
+        let own = ((rect[2] / 32 - rect[0] / 32 + 1) * (rect[3] / 32 - rect[1] / 32 + 1)) as u64;
+        let below: u64 = (l + 1..whole.len())
+            .map(|k| (whole[k].width.div_ceil(32) * whole[k].height.div_ceil(32)) as u64)
+            .sum();
+        assert!(
+            tiles >= own && tiles <= own + below,
+            "level {l}: {tiles} tiles"
+        );
+    }
+}

@@ -3,7 +3,10 @@
 
 use serde_json::json;
 use std::path::PathBuf;
-use terraclip::pack::{file, Quant};
+use std::sync::Arc;
+use terraclip::pack::reader::PackReader;
+use terraclip::pack::Quant;
+use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::terrain::write::{self, Grid};
 use terraclip::terrain::Lattice;
 
@@ -39,24 +42,41 @@ fn parse_window(s: &str) -> Result<[usize; 4], String> {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let (header, levels) = file::read_levels(&a.pack)?;
-    let Some(lv) = levels.get(a.level) else {
+    // Only the tiles under the window are decoded (and the coarser ones
+    // they are predicted from), so a window of a pack of any size is cheap.
+    let reader = PackReader::open(&a.pack)?;
+    let header = reader.header().clone();
+    if a.level >= header.levels() {
         anyhow::bail!(
             "{}: --level {} does not exist (the pack has levels 0..={})",
             a.pack.display(),
             a.level,
-            levels.len() - 1
-        );
-    };
-    let [x, y, w, h] = a.window.unwrap_or([0, 0, lv.width, lv.height]);
-    if x + w > lv.width || y + h > lv.height {
-        anyhow::bail!(
-            "--window {x},{y},{w},{h} leaves level {} ({}×{})",
-            a.level,
-            lv.width,
-            lv.height
+            header.levels() - 1
         );
     }
+    let [lw, lh] = header.level_size(a.level);
+    let [x, y, w, h] = a.window.unwrap_or([0, 0, lw, lh]);
+    if x + w > lw || y + h > lh {
+        anyhow::bail!(
+            "--window {x},{y},{w},{h} leaves level {} ({lw}×{lh})",
+            a.level
+        );
+    }
+    if (w * h) as u64 > terraclip::terrain::MAX_TEXELS {
+        anyhow::bail!(
+            "{}: level {} is {w}×{h}, more than the {} samples unpack writes at once; give a --window",
+            a.pack.display(),
+            a.level,
+            terraclip::terrain::MAX_TEXELS
+        );
+    }
+    let filter =
+        Filter::parse(&header.filter).map_err(|r| anyhow::anyhow!("{}: {r}", a.pack.display()))?;
+    let mut pyramid = Pyramid::decoded(Arc::new(reader), filter, u64::MAX)
+        .map_err(|r| anyhow::anyhow!("{}: {r}", a.pack.display()))?;
+    let rect = [x as i64, y as i64, (x + w) as i64 - 1, (y + h) as i64 - 1];
+    pyramid.decode_window(a.level, rect)?;
+    let lv = &pyramid.levels[a.level];
     fn crop<T: Copy>(v: &[T], stride: usize, [x, y, w, h]: [usize; 4]) -> Vec<T> {
         (y..y + h)
             .flat_map(|r| v[r * stride + x..r * stride + x + w].iter().copied())

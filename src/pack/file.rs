@@ -216,6 +216,13 @@ pub fn read_header(path: &Path) -> Result<Header> {
 /// Reads the pack at `path` and decodes every level (finest first). Errors
 /// name the file, and the level and tile at fault.
 pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
+    let [w, h] = read_header(path)?.size();
+    crate::terrain::check_dimensions(w as u64, h as u64).map_err(|r| {
+        Error::file(
+            path,
+            format!("too large to decode whole ({r}); a clipmap scene without shadows or normal-map decodes it tile by tile"),
+        )
+    })?;
     let (header, packed) = read(path)?;
     let levels = packed
         .decode()

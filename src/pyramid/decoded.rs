@@ -196,6 +196,25 @@ impl Pyramid {
         }
     }
 
+    /// Decodes every tile of level `l` under `rect` (inclusive, level
+    /// texels), and first the coarser tiles they are predicted from,
+    /// whatever the budget: a window read out of a pack of any size.
+    /// Errors name the pack, the level and the tile.
+    pub fn decode_window(&mut self, l: usize, rect: [i64; 4]) -> crate::Result<()> {
+        let top = self.levels.len() - 1;
+        if self.decoded.is_none() || l > top {
+            return Ok(());
+        }
+        let plan = self.plan(l, rect, top);
+        for (j, want) in plan.iter().enumerate().rev() {
+            self.decode_tiles(l + j, want);
+        }
+        match self.decode_error() {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
     /// Samples of tile `t` of level `l`.
     fn tile_samples(&self, l: usize, [i, j]: [usize; 2]) -> u64 {
         let side = self.decoded.as_ref().map_or(1, |d| d.src.tile());
