@@ -730,3 +730,53 @@ fn a_window_decoded_alone_equals_the_whole_decode() {
         );
     }
 }
+
+/// The goldens' packs are what `terraclip pack` writes today (a codec or
+/// format change shows here first: re-make them with the commands in
+/// their scenes, then bless), and the lossless one renders the map's own
+/// frame.
+#[test]
+fn the_golden_packs_are_todays_and_the_lossless_one_is_the_map() {
+    use terraclip::pack::stream;
+    use terraclip::terrain::rows;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (input, e, pack) in [
+        (
+            "tests/data/jacksboro_16.png",
+            0.0,
+            "golden/jacksboro-e0.tcz",
+        ),
+        (
+            "golden/level-tint.toml",
+            1.0,
+            "golden/procedural-513-e1.tcz",
+        ),
+    ] {
+        let src = if input.ends_with(".toml") {
+            let s = terraclip::scene::Scene::load(Path::new(input)).unwrap();
+            rows::for_terrain(&s.terrain, &s.base_dir).unwrap()
+        } else {
+            rows::open(Path::new(input)).unwrap()
+        };
+        let out = tmp(&format!("today-{e}.tcz"));
+        let o = stream::Options::new(e, 128, Filter::default(), input);
+        stream::pack(src.as_ref(), &out, &o, &mut |_, _| {}).unwrap();
+        assert!(
+            std::fs::read(&out).unwrap() == std::fs::read(pack).unwrap(),
+            "{pack} is not what `terraclip pack {input}` writes now"
+        );
+    }
+    use terraclip::render::{render, RenderOptions};
+    let packed = terraclip::scene::Scene::load(Path::new("golden/pack-lossless.toml")).unwrap();
+    let mut direct = packed.clone();
+    direct.terrain.file = Some(root.join("tests/data/jacksboro_16.png"));
+    let (a, _) = render(&direct, &RenderOptions::default()).unwrap();
+    let (b, s) = render(&packed, &RenderOptions::default()).unwrap();
+    assert!(s.lazy.is_some(), "decoded tile by tile");
+    assert!(a.rgba == b.rgba);
+    assert!(a
+        .depth
+        .iter()
+        .zip(&b.depth)
+        .all(|(x, y)| x.to_bits() == y.to_bits()));
+}
