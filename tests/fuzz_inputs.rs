@@ -317,21 +317,60 @@ fn pack_seed(d: &Path) -> Vec<u8> {
 /// Reads and decodes a pack: Ok(true) decoded (finite, the sizes the header
 /// says), Ok(false) a clean error naming the file, Err on a panic or an
 /// error that does not name it.
+///
+/// Each case is also opened as a render opens it (mapped, the index
+/// checked, each tile's CRC at decode) and decoded tile by tile through a
+/// window over all of level 0, which needs every tile: it must agree, the
+/// same bits or an error naming the file.
 fn pack_once(p: &Path) -> Result<bool, String> {
     let r = std::panic::catch_unwind(|| terraclip::pack::file::read_levels(p));
-    match r {
-        Err(_) => Err(format!("panic on {}", p.display())),
-        Ok(Ok((h, levels))) => {
+    let mapped = std::panic::catch_unwind(|| mapped_levels(p));
+    let bits = |l: &[terraclip::pyramid::PyramidLevel]| -> Vec<Vec<u32>> {
+        l.iter()
+            .map(|l| l.data.iter().map(|v| v.to_bits()).collect())
+            .collect()
+    };
+    let names = |e: &terraclip::Error| e.to_string().contains("case.tcz");
+    match (r, mapped) {
+        (Err(_), _) | (_, Err(_)) => Err(format!("panic on {}", p.display())),
+        (Ok(Ok((h, levels))), Ok(m)) => {
             if levels.len() != h.levels()
                 || levels.iter().any(|l| l.data.iter().any(|v| !v.is_finite()))
             {
                 return Err(format!("pack decoded badly: {h:?}"));
             }
-            Ok(true)
+            match m {
+                Ok(m) if bits(&m) == bits(&levels) => Ok(true),
+                Ok(_) => Err("the mapped decode differs from the whole one".into()),
+                Err(e) => Err(format!(
+                    "the mapped decode fails where the whole one does not: {e}"
+                )),
+            }
         }
-        Ok(Err(e)) if e.to_string().contains("case.tcz") => Ok(false),
-        Ok(Err(e)) => Err(format!("pack error does not name the file: {e}")),
+        (Ok(Err(e)), Ok(m)) if names(&e) => match m {
+            Err(e) if names(&e) => Ok(false),
+            Err(e) => Err(format!("mapped pack error does not name the file: {e}")),
+            Ok(_) => Err(format!(
+                "the mapped decode loads what the whole one refuses: {e}"
+            )),
+        },
+        (Ok(Err(e)), _) => Err(format!("pack error does not name the file: {e}")),
     }
+}
+
+/// Every level of the pack at `p` as a render decodes it.
+fn mapped_levels(p: &Path) -> terraclip::Result<Vec<terraclip::pyramid::PyramidLevel>> {
+    use terraclip::pyramid::{Filter, Pyramid};
+    let r = terraclip::pack::reader::PackReader::open(p)?;
+    let [w, h] = r.header().size();
+    let bad = |e: String| terraclip::Error::BadFile {
+        path: p.to_path_buf(),
+        reason: e,
+    };
+    let filter = Filter::parse(&r.header().filter).map_err(bad)?;
+    let mut py = Pyramid::decoded(std::sync::Arc::new(r), filter, 1).map_err(bad)?;
+    py.decode_window(0, [0, 0, w as i64 - 1, h as i64 - 1])?;
+    Ok(py.levels)
 }
 
 #[test]

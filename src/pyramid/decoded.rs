@@ -20,7 +20,7 @@
 //! - A tile that fails to decode (a damaged pack) stays missing, and the
 //!   pyramid keeps the first error for the session to report.
 
-use super::lazy::{unbuilt, Tiles};
+use super::lazy::Tiles;
 use super::{Filter, Pyramid, PyramidLevel, RangeGrid, RANGE_TILE};
 use crate::terrain::huge;
 use rayon::prelude::*;
@@ -99,14 +99,28 @@ impl Pyramid {
         let levels: Vec<PyramidLevel> = sizes
             .iter()
             .zip(&ranges)
-            .map(|(&[w, h], &[lo, hi])| {
-                let mut l = unbuilt(w, h);
-                huge::small_pages(&mut l.data);
-                huge::small_pages(&mut l.nodata);
-                (l.min, l.max) = (lo, hi);
-                l
+            .enumerate()
+            .map(|(l, (&[w, h], &[lo, hi]))| {
+                let n = w.checked_mul(h).unwrap_or(usize::MAX);
+                let no_room = || {
+                    format!(
+                        "level {l} of {w}×{h} samples: the address space for it cannot be reserved"
+                    )
+                };
+                let mut data = huge::try_zeroed::<f32>(n).ok_or_else(no_room)?;
+                let mut nodata = huge::try_zeroed::<bool>(n).ok_or_else(no_room)?;
+                huge::small_pages(&mut data);
+                huge::small_pages(&mut nodata);
+                Ok(PyramidLevel {
+                    width: w,
+                    height: h,
+                    data,
+                    nodata,
+                    min: lo,
+                    max: hi,
+                })
             })
-            .collect();
+            .collect::<Result<_, String>>()?;
         let side = src.tile();
         let tiles: Vec<Tiles> = levels.iter().map(|l| Tiles::new(l, false, side)).collect();
         let tiles_total = tiles.iter().map(|t| (t.nx * t.ny) as u64).sum();

@@ -137,7 +137,7 @@ pub(super) struct Lazy {
 
 /// A level no tile of which is built yet: zeroed arrays straight from the
 /// allocator (no page touched), bounds that hold nothing.
-pub(super) fn unbuilt(width: usize, height: usize) -> PyramidLevel {
+fn unbuilt(width: usize, height: usize) -> PyramidLevel {
     PyramidLevel {
         width,
         height,

@@ -55,6 +55,24 @@ fn advise(ptr: *mut u8, bytes: usize) {
 #[cfg(not(target_os = "linux"))]
 fn advise(_ptr: *mut u8, _bytes: usize) {}
 
+/// `len` zeros, or `None` where the allocator cannot give the address
+/// space: zeroed memory straight from the allocator (no page touched until
+/// written), for a sparse level the size of a map larger than memory,
+/// whose failure must be an error rather than an abort.
+pub fn try_zeroed<T: ZeroIsValid>(len: usize) -> Option<Vec<T>> {
+    let layout = std::alloc::Layout::array::<T>(len).ok()?;
+    if layout.size() == 0 {
+        return Some(Vec::new());
+    }
+    // SAFETY: a non-zero layout; the memory is the global allocator's,
+    // zeroed, and all-zero bytes are a valid `T` (`ZeroIsValid`), so a Vec
+    // of `len` initialised elements may own it.
+    unsafe {
+        let p = std::alloc::alloc_zeroed(layout) as *mut T;
+        (!p.is_null()).then(|| Vec::from_raw_parts(p, len, len))
+    }
+}
+
 /// Types whose all-zero bytes are a valid value (0.0, false), which
 /// [`release`] may leave in their place.
 pub trait ZeroIsValid: Copy {}
@@ -126,6 +144,16 @@ mod tests {
     /// Exactly the samples in whole pages inside the slice read zero
     /// afterwards; the others, and a slice holding no whole page, keep
     /// their values.
+    #[test]
+    fn try_zeroed_gives_zeros_or_none() {
+        let v: Vec<f32> = try_zeroed(100_000).unwrap();
+        assert!(v.len() == 100_000 && v.iter().all(|&x| x == 0.0));
+        assert!(try_zeroed::<bool>(0).unwrap().is_empty());
+        assert!(try_zeroed::<f32>(usize::MAX / 2).is_none());
+        // 128 TB: a valid layout no allocator here can give.
+        assert!(try_zeroed::<f32>(1 << 45).is_none());
+    }
+
     #[cfg(target_os = "linux")]
     #[test]
     fn release_zeroes_the_whole_pages_inside_only() {
