@@ -101,7 +101,7 @@ impl Pyramid {
             .zip(&ranges)
             .enumerate()
             .map(|(l, (&[w, h], &[lo, hi]))| {
-                let n = w.checked_mul(h).unwrap_or(usize::MAX);
+                let n = w.saturating_mul(h);
                 let no_room = || {
                     format!(
                         "level {l} of {w}×{h} samples: the address space for it cannot be reserved"
