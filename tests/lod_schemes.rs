@@ -240,9 +240,9 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
 #[test]
 fn fly_reports_updates_and_sees_pops_without_morph() {
     let mut s = scene();
-    let on = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
+    let on = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, |_, _| Ok(())).unwrap();
     s.effects.retain(|e| *e != Effect::Morph);
-    let off = terraclip::studies::fly::fly(&s, 24, 3.0, true, |_, _| Ok(())).unwrap();
+    let off = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, |_, _| Ok(())).unwrap();
     assert_eq!(on.frames.len(), 24);
     assert!(on.texels_updated > 0, "the clipmap never updated");
     let mean = |r: &terraclip::studies::fly::FlyReport| {
@@ -261,10 +261,13 @@ fn fly_reports_updates_and_sees_pops_without_morph() {
         on.popping_max < 0.8 * off.popping_max,
         "max popping, on against off"
     );
-    let bf =
-        terraclip::studies::fly::fly(&s.with_lod("brute-force").unwrap(), 3, 7.0, true, |_, _| {
-            Ok(())
-        })
-        .unwrap();
+    let bf = terraclip::studies::fly::fly(
+        &s.with_lod("brute-force").unwrap(),
+        (3, 0),
+        7.0,
+        true,
+        |_, _| Ok(()),
+    )
+    .unwrap();
     assert_eq!(bf.popping_max, 0.0, "brute force cannot pop against itself");
 }

@@ -14,6 +14,10 @@ pub struct Args {
     /// Metres per frame (forward, plus 0.37× sideways).
     #[arg(long, default_value_t = 5.0)]
     pub step: f64,
+    /// Frames held at the path's last camera after it (a budget-limited
+    /// update catches up there).
+    #[arg(long, default_value_t = 0)]
+    pub still: usize,
     /// Where frame_NNNN.png go; no images if omitted.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -33,6 +37,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.frames == 0 || a.frames > 100_000 {
         anyhow::bail!("--frames must be within 1..=100000, got {}", a.frames);
     }
+    if a.still > 100_000 {
+        anyhow::bail!("--still must be within 0..=100000, got {}", a.still);
+    }
     if !a.step.is_finite() {
         anyhow::bail!("--step must be finite");
     }
@@ -43,9 +50,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
     }
-    let bar = progress(a.frames, "fly");
+    let bar = progress(a.frames + a.still, "fly");
     let mut kept = Vec::new();
-    let report = fly::fly(&s, a.frames, a.step, !a.no_popping, |i, img| {
+    let report = fly::fly(&s, (a.frames, a.still), a.step, !a.no_popping, |i, img| {
         bar.inc(1);
         if let Some(dir) = &a.out {
             write_atomic(&dir.join(format!("frame_{i:04}.png")), &img.png()?)?;
@@ -58,6 +65,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     if let (Some(dir), true) = (&a.out, a.gif) {
         write_atomic(&dir.join("fly.gif"), &fly::gif(&kept)?)?;
+    }
+    if let Some(dir) = &a.out {
+        for (name, chart) in fly::charts(&report) {
+            write_atomic(&dir.join(format!("{name}.svg")), chart.svg().as_bytes())?;
+            write_atomic(&dir.join(format!("{name}.png")), &chart.png()?)?;
+        }
     }
     if a.json {
         println!("{}", serde_json::to_value(&report)?);

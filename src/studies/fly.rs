@@ -58,10 +58,11 @@ pub struct FlyReport {
 }
 
 /// Flies `frames` frames from the scene's camera, `step` metres per frame
-/// (views::path). `each` gets every frame's image.
+/// (views::path), then holds the last camera for `still` frames (where a
+/// budget-limited update catches up). `each` gets every frame's image.
 pub fn fly(
     scene: &Scene,
-    frames: usize,
+    (frames, still): (usize, usize),
     step: f64,
     popping: bool,
     mut each: impl FnMut(usize, &Image) -> Result<()>,
@@ -78,10 +79,11 @@ pub fn fly(
     };
     let mut out = Vec::new();
     let mut prev: Option<(Image, Option<Image>)> = None;
-    for (i, cam) in views::path(&scene.camera(), frames, step)
-        .iter()
-        .enumerate()
-    {
+    let mut cams = views::path(&scene.camera(), frames, step);
+    if let Some(&last) = cams.last() {
+        cams.extend(std::iter::repeat_n(last, still));
+    }
+    for (i, cam) in cams.iter().enumerate() {
         let (img, stats) = session.render(cam, &opts, Passes::default())?;
         let reference = match &mut brute {
             Some(b) => Some(b.render(cam, &opts, Passes::default())?.0),
@@ -118,6 +120,46 @@ pub fn fly(
         peak_rss_bytes: crate::studies::scaling::peak_rss().unwrap_or(0),
         frames: out,
     })
+}
+
+/// Charts of a flight against the frame: each frame's time (the whole
+/// frame and the LOD update), and the clipmap levels drawn; named
+/// `fly-ms` and `fly-levels`.
+pub fn charts(r: &FlyReport) -> Vec<(&'static str, crate::studies::report::chart::Chart)> {
+    use crate::studies::report::chart::{Chart, Series};
+    let series = |name: &str, f: &dyn Fn(&FlyFrame) -> f64| Series {
+        name: name.into(),
+        points: r.frames.iter().map(|x| (x.frame as f64, f(x))).collect(),
+    };
+    let chart = |title: &str, y: &str, series| Chart {
+        title: format!("{title} ({}, {} frames)", r.lod, r.frames.len()),
+        x_label: "frame".into(),
+        y_label: y.into(),
+        series,
+        front: vec![],
+        linear_x: true,
+    };
+    vec![
+        (
+            "fly-ms",
+            chart(
+                "frame time",
+                "ms",
+                vec![
+                    series("frame", &|x| x.ms),
+                    series("LOD update", &|x| x.update_ms),
+                ],
+            ),
+        ),
+        (
+            "fly-levels",
+            chart(
+                "clipmap levels drawn",
+                "levels",
+                vec![series("levels drawn", &|x| x.levels_drawn as f64)],
+            ),
+        ),
+    ]
 }
 
 /// An animated GIF of RGBA frames (10 frames per second).

@@ -491,6 +491,7 @@ pub fn chart(report: &Report, title: &str) -> crate::studies::report::chart::Cha
         y_label: "RMSE vs reference (8-bit)".into(),
         series,
         front,
+        linear_x: false,
     }
 }
 

@@ -22,6 +22,9 @@ pub struct Chart {
     pub series: Vec<Series>,
     /// Points of the Pareto front, in x order.
     pub front: Vec<(f64, f64)>,
+    /// A linear x axis from 0 (a quantity per frame against the frame)
+    /// instead of the log axis of times.
+    pub linear_x: bool,
 }
 
 const W: f64 = 960.0;
@@ -103,7 +106,7 @@ impl Chart {
         let pts = self.series.iter().flat_map(|s| s.points.iter());
         let (mut x0, mut x1, mut y1) = (f64::INFINITY, 0.0f64, 0.0f64);
         for &(x, y) in pts {
-            if x > 0.0 && x.is_finite() && y.is_finite() {
+            if (x > 0.0 || self.linear_x && x >= 0.0) && x.is_finite() && y.is_finite() {
                 x0 = x0.min(x);
                 x1 = x1.max(x);
                 y1 = y1.max(y);
@@ -112,15 +115,28 @@ impl Chart {
         if !x0.is_finite() {
             (x0, x1) = (1.0, 10.0);
         }
-        let (lx0, lx1) = ((x0 / 1.5).log10(), (x1 * 1.5).log10());
         let y1 = if y1 > 0.0 { y1 * 1.1 } else { 1.0 };
         let (pw, ph) = (W - LEFT - RIGHT, H - TOP - BOTTOM);
-        let px = |x: f64| LEFT + (x.max(1e-12).log10() - lx0) / (lx1 - lx0) * pw;
+        let (lx0, lx1) = match self.linear_x {
+            true => (0.0, if x1 > 0.0 { x1 } else { 1.0 }),
+            false => ((x0 / 1.5).log10(), (x1 * 1.5).log10()),
+        };
+        let linear = self.linear_x;
+        let px = |x: f64| {
+            let v = if linear { x } else { x.max(1e-12).log10() };
+            LEFT + (v - lx0) / (lx1 - lx0) * pw
+        };
         let py = |y: f64| TOP + ph - y / y1 * ph;
         let grey = [200, 200, 200];
         let ink = [40, 40, 40];
+        let x_ticks = match linear {
+            true => linear_ticks(lx0, lx1),
+            false => log_ticks(10f64.powf(lx0), 10f64.powf(lx1)),
+        };
+        // Dense series (a value per frame) are drawn as lines alone.
+        let dot = |n: usize| if n > 60 { 0.0 } else { 4.0 };
         // Frame, ticks and grid.
-        for t in log_ticks(10f64.powf(lx0), 10f64.powf(lx1)) {
+        for t in x_ticks {
             c.line((px(t), TOP), (px(t), TOP + ph), grey, 1.0, false);
             c.text(
                 (px(t), TOP + ph + 18.0),
@@ -197,22 +213,26 @@ impl Chart {
                     false,
                 );
             }
-            for &(x, y) in &p {
-                c.circle((px(x), py(y)), 4.0, rgb, true);
+            if dot(p.len()) > 0.0 {
+                for &(x, y) in &p {
+                    c.circle((px(x), py(y)), dot(p.len()), rgb, true);
+                }
             }
             let ly = TOP + 20.0 + 22.0 * i as f64;
             c.circle((W - RIGHT + 24.0, ly - 4.0), 4.0, rgb, true);
             c.text((W - RIGHT + 36.0, ly), &s.name, 8.0, Anchor::Start, false);
         }
-        let ly = TOP + 20.0 + 22.0 * self.series.len() as f64;
-        c.circle((W - RIGHT + 24.0, ly - 4.0), 8.0, ink, false);
-        c.text(
-            (W - RIGHT + 36.0, ly),
-            "pareto front",
-            8.0,
-            Anchor::Start,
-            false,
-        );
+        if !self.front.is_empty() {
+            let ly = TOP + 20.0 + 22.0 * self.series.len() as f64;
+            c.circle((W - RIGHT + 24.0, ly - 4.0), 8.0, ink, false);
+            c.text(
+                (W - RIGHT + 36.0, ly),
+                "pareto front",
+                8.0,
+                Anchor::Start,
+                false,
+            );
+        }
     }
 
     pub fn svg(&self) -> String {
@@ -394,6 +414,7 @@ mod tests {
                 },
             ],
             front: vec![(1.0, 2.0), (3.0, 0.5)],
+            linear_x: false,
         };
         let svg = chart.svg();
         // 3 series points + 2 legend dots + 2 front rings + 1 legend ring.
