@@ -13,7 +13,9 @@
 //!   something to draw; a finer level whose window is not complete waits
 //!   (is not drawn), with every level finer than it: LH04's graceful
 //!   degradation, the reverse of the filtered lazy pyramid's.
-//! - Tiles more than one tile away from their level's window are evicted:
+//! - A few tiles an update are decoded ahead, in a ring a tile deep around
+//!   each window, so crossing into new tiles mostly finds them decoded.
+//! - Tiles more than a tile away from their level's window are evicted:
 //!   marked missing, and the pages only they used given back
 //!   ([`crate::terrain::huge::release`]), so a flight of any length over a
 //!   map of any size holds a few tiles per level.
@@ -66,6 +68,17 @@ pub(super) struct Decoded {
     /// The first tile that failed to decode.
     error: Option<String>,
 }
+
+/// Tiles an update decodes ahead of the windows, all levels together,
+/// finest first ([`Pyramid::decode_ahead`]): at 64 texels a frame,
+/// diagonally, 255-texel windows of 128² tiles need about 3 new tiles a
+/// frame over all levels, so 4 mostly keeps ahead while no frame decodes
+/// more than 4 tiles for it (two per level, or a ring two tiles deep,
+/// measured no better; docs/pack.md).
+const AHEAD: usize = 4;
+/// How many tiles deep the ring decoded ahead of each window is, which
+/// eviction keeps.
+const RING: i64 = 1;
 
 /// What one call of [`Pyramid::build_around`] did.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -169,27 +182,7 @@ impl Pyramid {
             // The coarsest drawn level whatever the budget.
             let unlimited = k + 1 == count;
             let plan = self.plan(k, windows[k], top);
-            for (j, want) in plan.iter().enumerate().rev() {
-                let d = self.decoded.as_ref().expect("decoded pyramid");
-                let mut batch = Vec::with_capacity(want.len());
-                for &t in want {
-                    if !unlimited && budget == 0 {
-                        break;
-                    }
-                    let ready = match d.src.reads(k + j, t) {
-                        Some(r) if k + j < top => d.tiles[k + j + 1]
-                            .missing(&self.levels[k + j + 1], r)
-                            .next()
-                            .is_none(),
-                        _ => true,
-                    };
-                    if ready {
-                        budget = budget.saturating_sub(self.tile_samples(k + j, t));
-                        batch.push(t);
-                    }
-                }
-                self.decode_tiles(k + j, &batch);
-            }
+            self.decode_plan(k, &plan, &mut budget, unlimited, usize::MAX);
             let d = self.decoded.as_ref().expect("decoded pyramid");
             if d.tiles[k]
                 .missing(&self.levels[k], windows[k])
@@ -200,6 +193,7 @@ impl Pyramid {
             }
             first = k;
         }
+        self.decode_ahead(&windows[first..count], first, &mut budget);
         let evicted = self.evict(&windows[..count]);
         let after = self.progress.unwrap_or_default();
         Built {
@@ -227,6 +221,66 @@ impl Pyramid {
             Some(e) => Err(e),
             None => Ok(()),
         }
+    }
+
+    /// Decodes up to [`AHEAD`] missing tiles within [`RING`] tiles of the
+    /// drawn levels' windows (`windows[i]` is level `first + i`'s), finest
+    /// level first, from what the budget left: the tiles the next frames
+    /// will reach, so that crossing into a new row or column of tiles
+    /// finds them decoded instead of decoding them all in that frame. The
+    /// same ring is what eviction keeps.
+    fn decode_ahead(&mut self, windows: &[[i64; 4]], first: usize, budget: &mut u64) {
+        let top = self.levels.len() - 1;
+        let g = RING * self.decoded.as_ref().map_or(1, |d| d.src.tile()) as i64;
+        let mut left = AHEAD;
+        for (i, &[x0, y0, x1, y1]) in windows.iter().enumerate() {
+            if left == 0 {
+                break;
+            }
+            let k = first + i;
+            let plan = self.plan(k, [x0 - g, y0 - g, x1 + g, y1 + g], top);
+            left -= self.decode_plan(k, &plan, budget, false, left);
+        }
+    }
+
+    /// Decodes `plan` ([`Pyramid::plan`] of level `k`) coarse first: each
+    /// tile whose coarser reads exist, while `budget` samples last (or
+    /// whatever the budget, if `unlimited`), at most `limit` tiles; returns
+    /// how many it took.
+    fn decode_plan(
+        &mut self,
+        k: usize,
+        plan: &[Vec<[usize; 2]>],
+        budget: &mut u64,
+        unlimited: bool,
+        mut limit: usize,
+    ) -> usize {
+        let top = self.levels.len() - 1;
+        let mut taken = 0;
+        for (j, want) in plan.iter().enumerate().rev() {
+            let d = self.decoded.as_ref().expect("decoded pyramid");
+            let mut batch = Vec::with_capacity(want.len().min(limit));
+            for &t in want {
+                if limit == 0 || !unlimited && *budget == 0 {
+                    break;
+                }
+                let ready = match d.src.reads(k + j, t) {
+                    Some(r) if k + j < top => d.tiles[k + j + 1]
+                        .missing(&self.levels[k + j + 1], r)
+                        .next()
+                        .is_none(),
+                    _ => true,
+                };
+                if ready {
+                    *budget = budget.saturating_sub(self.tile_samples(k + j, t));
+                    batch.push(t);
+                    limit -= 1;
+                }
+            }
+            taken += batch.len();
+            self.decode_tiles(k + j, &batch);
+        }
+        taken
     }
 
     /// Samples of tile `t` of level `l`.
@@ -329,8 +383,9 @@ impl Pyramid {
         }
     }
 
-    /// Evicts the tiles of each drawn level that lie more than a tile from
-    /// its window, giving back the pages only they used; returns how many.
+    /// Evicts the tiles of each drawn level that lie more than [`RING`]
+    /// tiles from its window, giving back the pages only they used;
+    /// returns how many.
     /// The levels coarser than the drawn ones stay (they are small).
     fn evict(&mut self, windows: &[[i64; 4]]) -> u64 {
         let Pyramid {
@@ -340,10 +395,10 @@ impl Pyramid {
         let side = d.src.tile();
         let mut evicted = 0;
         for (l, &[x0, y0, x1, y1]) in windows.iter().enumerate() {
-            let g = side as i64;
+            let (g, r) = (side as i64, RING * side as i64);
             let keep = |[i, j]: [usize; 2]| {
                 let (a, b) = (i as i64 * g, j as i64 * g);
-                a + g > x0 - g && a <= x1 + g && b + g > y0 - g && b <= y1 + g
+                a + g > x0 - r && a <= x1 + r && b + g > y0 - r && b <= y1 + r
             };
             let (resident, tiles) = (&mut d.resident[l], &mut d.tiles[l]);
             let mut gone = Vec::new();
