@@ -299,7 +299,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("raw f32 + sidecar", 334),
     ("scene", 106),
     ("geographic tif", 617),
-    ("pack", 1),
+    ("pack", 2),
 ];
 
 /// A lossy pack of a small procedural map.

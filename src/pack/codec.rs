@@ -355,8 +355,8 @@ fn four_point(t: usize, len: usize, at: impl Fn(usize) -> f32) -> (f64, f64) {
 /// the row and the column phases. With it, the activity of what it was
 /// predicted from (height units), which picks the sample's model.
 #[inline]
-fn prediction(
-    coarse: Option<&dyn Coarse>,
+fn prediction<C: Coarse + ?Sized>(
+    coarse: Option<&C>,
     rec: &[f32],
     rect: (usize, usize, usize, usize),
     tx: usize,
@@ -410,9 +410,9 @@ fn context(phase: usize, activity: f64, unit: f64) -> usize {
 /// Encodes one tile of `level` (its samples `src`), predicted from
 /// `coarse` (`None` on the coarsest level); returns the tile's bytes and
 /// its reconstruction.
-pub(crate) fn encode_tile(
+pub(crate) fn encode_tile<C: Coarse + ?Sized>(
     src: Rows,
-    coarse: Option<&dyn Coarse>,
+    coarse: Option<&C>,
     quant: Quant,
     rect: (usize, usize, usize, usize),
 ) -> (Vec<u8>, Vec<f32>) {
@@ -517,9 +517,9 @@ pub(crate) fn encode_tile(
 
 /// Decodes tile `bytes` covering `rect` of a level quantised by `quant`,
 /// predicted from `coarse` (`None` on the coarsest level).
-pub(crate) fn decode_tile(
+pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     bytes: &[u8],
-    coarse: Option<&dyn Coarse>,
+    coarse: Option<&C>,
     quant: Quant,
     rect: (usize, usize, usize, usize),
 ) -> Result<(Vec<f32>, Vec<bool>), String> {
@@ -591,7 +591,7 @@ pub(crate) fn decode_tile(
         ALL_NODATA => vec![true; n],
         _ => vec![false; n],
     };
-    let models = model::models();
+    let models = model::decoders();
     let top = coarse.is_none();
     let mut rec = vec![0f32; n];
     let mut at = 0usize;
@@ -694,7 +694,7 @@ impl Packed {
                 .into_par_iter()
                 .map(|t| {
                     let rect = tile_rect(src.width, src.height, tile, t % tx, t / tx);
-                    encode_tile(src.rows(), coarse.map(|c| c as &dyn Coarse), quant, rect)
+                    encode_tile(src.rows(), coarse, quant, rect)
                 })
                 .collect();
             let mut data = vec![0f32; src.width * src.height];
@@ -736,11 +736,11 @@ impl Packed {
 
     /// Decodes tile (tx, ty) of level `l`, predicted from `coarse`, the
     /// reconstructed level l + 1 (ignored on the coarsest level).
-    pub fn decode_tile(
+    pub fn decode_tile<C: Coarse + ?Sized>(
         &self,
         l: usize,
         [tx, ty]: [usize; 2],
-        coarse: &dyn Coarse,
+        coarse: &C,
     ) -> Result<Tile, TileError> {
         let lv = &self.levels[l];
         let [nx, ny] = self.tiles_of(l);

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! "TCZPACK\0"             8 bytes, the magic
-//! version                 u32 LE (1)
+//! version                 u32 LE (2)
 //! header length           u32 LE
 //! header CRC-32           u32 LE
 //! header                  JSON: map size, cell size, filter, bound, tile, levels
@@ -26,8 +26,9 @@ use std::path::{Path, PathBuf};
 
 /// The first bytes of every pack.
 pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
-/// The version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The version this build writes and reads: 2 codes residuals under
+/// 14-bit models decoded through lookup tables (1 had 24-bit models).
+pub const VERSION: u32 = 2;
 /// Bytes of one index entry.
 const ENTRY: usize = 16;
 

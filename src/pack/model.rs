@@ -8,7 +8,9 @@
 //! only (no `exp`, whose last bit differs between C libraries), so every
 //! machine builds the same fixed-point tables and decodes the same bits.
 
-use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
+use constriction::stream::model::{
+    ContiguousCategoricalEntropyModel, ContiguousLookupDecoderModel,
+};
 use std::sync::OnceLock;
 
 /// Largest residual coded directly; larger ones are escaped.
@@ -19,11 +21,15 @@ pub const ESCAPE: usize = (2 * K + 1) as usize;
 pub const SYMBOLS: usize = ESCAPE + 1;
 /// Models in the family.
 pub const SCALES: usize = 40;
-/// Fixed-point precision of the probabilities (constriction's default).
-const PRECISION: u32 = 24;
+/// Fixed-point precision of the probabilities: 14 bits, so that a model
+/// decodes through a lookup table of 2^14 entries (32 KB) instead of a
+/// binary search over its 512 cumulative probabilities.
+const PRECISION: u32 = 14;
 
-/// A model of the family.
-pub type Model = DefaultContiguousCategoricalEntropyModel;
+/// A model of the family, for encoding.
+pub type Model = ContiguousCategoricalEntropyModel<u16, Vec<u16>, 14>;
+/// The same model as a lookup table, for decoding.
+pub type Decoder = ContiguousLookupDecoderModel<u16, Vec<u16>, Box<[u16]>, 14>;
 
 /// Symbol of residual `q`: `q + K` inside the range, else [`ESCAPE`].
 #[inline]
@@ -51,7 +57,7 @@ pub fn scale(k: usize) -> f64 {
 /// Fixed-point probabilities of model `k`, summing to 2^PRECISION, each at
 /// least 1. A two-sided geometric distribution with ratio r = b / (b + 1)
 /// has mean |q| close to b; the escape takes the mass beyond ±K.
-pub fn probabilities(k: usize) -> Vec<u32> {
+pub fn probabilities(k: usize) -> Vec<u16> {
     let b = scale(k);
     let r = b / (b + 1.0);
     let mut mass = vec![0f64; SYMBOLS];
@@ -66,15 +72,19 @@ pub fn probabilities(k: usize) -> Vec<u32> {
     mass[ESCAPE] = 2.0 * p / (1.0 - r) + 1e-9;
     let total: f64 = mass.iter().sum();
     let full = 1u64 << PRECISION;
-    let mut fixed: Vec<u32> = mass
+    // One count each, and the rest shared by mass, rounded down: the
+    // counts never exceed the total, so the remainder is only ever given.
+    let share = (full - SYMBOLS as u64) as f64;
+    let mut fixed: Vec<u16> = mass
         .iter()
-        .map(|&m| ((m / total * full as f64) as u64).max(1) as u32)
+        .map(|&m| (1 + (m / total * share) as u64) as u16)
         .collect();
-    // Give the rounding remainder to (or take it from) the most likely
-    // symbol, the centre.
+    // The remainder goes to the most likely symbol: the centre, or the
+    // escape for the widest models (the first of equals, so every machine
+    // picks the same).
     let sum: u64 = fixed.iter().map(|&f| f as u64).sum();
-    let centre = K as usize;
-    fixed[centre] = (fixed[centre] as i64 + (full as i64 - sum as i64)) as u32;
+    let top = (0..SYMBOLS).fold(0, |a, i| if fixed[i] > fixed[a] { i } else { a });
+    fixed[top] += (full - sum) as u16;
     fixed
 }
 
@@ -85,7 +95,20 @@ pub fn models() -> &'static [Model] {
         (0..SCALES)
             .map(|k| {
                 Model::from_nonzero_fixed_point_probabilities(probabilities(k), false)
-                    .expect("each model's probabilities are nonzero and sum to 2^24")
+                    .expect("each model's probabilities are nonzero and sum to 2^14")
+            })
+            .collect()
+    })
+}
+
+/// The family as lookup decoders, built once.
+pub fn decoders() -> &'static [Decoder] {
+    static DECODERS: OnceLock<Vec<Decoder>> = OnceLock::new();
+    DECODERS.get_or_init(|| {
+        (0..SCALES)
+            .map(|k| {
+                Decoder::from_nonzero_fixed_point_probabilities(probabilities(k), false)
+                    .expect("each model's probabilities are nonzero and sum to 2^14")
             })
             .collect()
     })

@@ -4,7 +4,7 @@
 //! opened, and each tile's CRC when it is decoded, so opening a pack of
 //! any size reads only its header and index.
 
-use super::codec::{self, coarse_rows, tile_rect, Coarse, Quant};
+use super::codec::{self, coarse_rows, tile_rect, Quant};
 use super::file::{check_end, parse_header, parse_index, tile_bytes, tile_name, Entry, Header};
 use crate::error::{Error, Result};
 use crate::pyramid::{PyramidLevel, TileSource};
@@ -112,7 +112,7 @@ impl TileSource for PackReader {
         let bytes = tile_bytes(&self.map, e, name)?;
         let [w, h] = self.header.level_size(l);
         let rect = tile_rect(w, h, self.header.tile, tx, ty);
-        let c = (l + 1 < self.header.levels()).then_some(coarse as &dyn Coarse);
+        let c = (l + 1 < self.header.levels()).then_some(coarse);
         let out = codec::decode_tile(bytes, c, self.quant[l], rect)
             .map_err(|r| format!("{}: {r}", name()));
         huge::drop_mapped(

@@ -19,7 +19,7 @@
 //!    temporary file and a rename. The bytes equal [`super::file::write`]'s
 //!    of [`super::Packed::encode`] on the same map (`tests/pack.rs`).
 
-use super::codec::{self, coarse_rows, encode_tile, tile_rect, Coarse, Quant};
+use super::codec::{self, coarse_rows, encode_tile, tile_rect, Quant};
 use super::file::{self, Header};
 use crate::error::{temp_path, write_atomic_with, Error, Result};
 use crate::pyramid::downsample::{self, Block, Scratch};
@@ -366,7 +366,7 @@ pub fn pack(
                 .into_par_iter()
                 .map(|t| {
                     let rect = tile_rect(w, h, tile, t % nx, ty0 + t / nx);
-                    let c = cview.as_ref().map(|c| c as &dyn Coarse);
+                    let c = cview.as_ref();
                     let (bytes, rec) = encode_tile(view, c, quant, rect);
                     let (x0, y0, tw, _) = rect;
                     let err = rec
