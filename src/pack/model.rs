@@ -88,30 +88,23 @@ pub fn probabilities(k: usize) -> Vec<u16> {
     fixed
 }
 
+/// Every model of the family, made by `make` from its counts.
+fn family<M>(make: impl Fn(Vec<u16>) -> Result<M, ()>) -> Vec<M> {
+    (0..SCALES)
+        .map(|k| make(probabilities(k)).expect("each model's counts are nonzero and sum to 2^14"))
+        .collect()
+}
+
 /// The family, built once.
 pub fn models() -> &'static [Model] {
     static MODELS: OnceLock<Vec<Model>> = OnceLock::new();
-    MODELS.get_or_init(|| {
-        (0..SCALES)
-            .map(|k| {
-                Model::from_nonzero_fixed_point_probabilities(probabilities(k), false)
-                    .expect("each model's probabilities are nonzero and sum to 2^14")
-            })
-            .collect()
-    })
+    MODELS.get_or_init(|| family(|p| Model::from_nonzero_fixed_point_probabilities(p, false)))
 }
 
 /// The family as lookup decoders, built once.
 pub fn decoders() -> &'static [Decoder] {
     static DECODERS: OnceLock<Vec<Decoder>> = OnceLock::new();
-    DECODERS.get_or_init(|| {
-        (0..SCALES)
-            .map(|k| {
-                Decoder::from_nonzero_fixed_point_probabilities(probabilities(k), false)
-                    .expect("each model's probabilities are nonzero and sum to 2^14")
-            })
-            .collect()
-    })
+    DECODERS.get_or_init(|| family(|p| Decoder::from_nonzero_fixed_point_probabilities(p, false)))
 }
 
 /// Bits each symbol costs under model `k`: −log2 p, for choosing a tile's
