@@ -795,3 +795,33 @@ fn the_golden_packs_are_todays_and_the_lossless_one_is_the_map() {
         .zip(&b.depth)
         .all(|(x, y)| x.to_bits() == y.to_bits()));
 }
+
+/// Walking two windows (levels 0 and 1) across a pack of 9 levels, the
+/// coarser levels the windows' tiles are predicted from are evicted too
+/// (under the coarsest window halved level by level), so what is held
+/// stops growing however far the walk goes.
+#[test]
+fn a_long_walk_holds_a_bounded_set_of_tiles_on_every_level() {
+    use std::sync::Arc;
+    use terraclip::pack::{reader::PackReader, stream};
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let path = tmp("walk.tcz");
+    let o = stream::Options::new(1.0, 32, Filter::default(), "walk");
+    let p = Procedural::new(3, 4097, 257);
+    stream::pack(&ProceduralRows::new(p).unwrap(), &path, &o, &mut |_, _| {}).unwrap();
+    let reader = PackReader::open(&path).unwrap();
+    let mut pyr = Pyramid::decoded(Arc::new(reader), Filter::default(), u64::MAX).unwrap();
+    assert_eq!(pyr.levels.len(), 9);
+    let mut held = vec![];
+    for step in 0..64i64 {
+        let x = 40 * step;
+        let windows = [[x, 64, x + 64, 128], [x / 2 - 2, 30, x / 2 + 64, 96]];
+        let b = pyr.build_around(&windows);
+        assert_eq!(b.ready, 0..2);
+        held.push(pyr.tiles_resident().unwrap());
+    }
+    let early = *held[..32].iter().max().unwrap();
+    let late = *held[32..].iter().max().unwrap();
+    assert!(late <= early + 4, "held tiles grow: {held:?}");
+}

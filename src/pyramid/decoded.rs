@@ -194,7 +194,19 @@ impl Pyramid {
             first = k;
         }
         self.decode_ahead(&windows[first..count], first, &mut budget);
-        let evicted = self.evict(&windows[..count]);
+        // The levels coarser than the drawn ones keep what lies under the
+        // coarsest window, halved level by level: what the drawn levels'
+        // tiles are predicted from.
+        let mut keep = windows[..count].to_vec();
+        while let Some(&[x0, y0, x1, y1]) = keep.last().filter(|_| keep.len() <= top) {
+            keep.push([
+                x0.div_euclid(2),
+                y0.div_euclid(2),
+                x1.div_euclid(2) + 1,
+                y1.div_euclid(2) + 1,
+            ]);
+        }
+        let evicted = self.evict(&keep);
         let after = self.progress.unwrap_or_default();
         Built {
             ready: first..count,
@@ -383,10 +395,9 @@ impl Pyramid {
         }
     }
 
-    /// Evicts the tiles of each drawn level that lie more than [`RING`]
-    /// tiles from its window, giving back the pages only they used;
+    /// Evicts the tiles of each level that lie more than [`RING`] tiles
+    /// from its window in `windows`, giving back the pages only they used;
     /// returns how many.
-    /// The levels coarser than the drawn ones stay (they are small).
     fn evict(&mut self, windows: &[[i64; 4]]) -> u64 {
         let Pyramid {
             levels, decoded, ..
