@@ -412,13 +412,15 @@ fn streamed_pack(
     assert_eq!(last.0, last.1, "progress reaches its total");
     let bytes = std::fs::read(&path).unwrap();
     assert_eq!(s.bytes, bytes.len() as u64);
-    // Nothing is left beside the output but the output.
+    // Nothing of this output's is left beside it but the output (other
+    // tests pack into the same folder at the same time).
     let dir = path.parent().unwrap();
+    let own = format!(".{}.tmp-", path.file_name().unwrap().to_string_lossy());
     let stray: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(|e| e.ok())
         .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n.contains(".tmp-"))
+        .filter(|n| n.starts_with(&own))
         .collect();
     assert!(stray.is_empty(), "temporary files left: {stray:?}");
     bytes
