@@ -723,18 +723,7 @@ fn a_window_decoded_alone_equals_the_whole_decode() {
         let reader = PackReader::open(&path).unwrap();
         let mut p = Pyramid::decoded(Arc::new(reader), Filter::default(), 1).unwrap();
         p.decode_window(l, rect).unwrap();
-        let (a, b) = (&p.levels[l], &whole[l]);
-        for y in rect[1]..=rect[3] {
-            for x in rect[0]..=rect[2] {
-                let i = y as usize * b.width + x as usize;
-                assert_eq!(
-                    a.data[i].to_bits(),
-                    b.data[i].to_bits(),
-                    "level {l} ({x}, {y})"
-                );
-                assert_eq!(a.nodata[i], b.nodata[i]);
-            }
-        }
+        common::same_window(&p.levels[l], &whole[l], l, rect);
         // Only what the window needed: its own tiles on level l.
         let tiles = p.lazy_stats().unwrap().tiles_built;
         let own = ((rect[2] / 32 - rect[0] / 32 + 1) * (rect[3] / 32 - rect[1] / 32 + 1)) as u64;

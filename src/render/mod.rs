@@ -433,17 +433,15 @@ impl Session {
     /// The lazy pyramid's state after the frame `clip` was updated for.
     pub fn lazy_frame(&self, clip: Option<&ClipFrame>) -> Option<LazyFrame> {
         let update = clip.map(|c| &c.update);
+        let resident = self.pyramid().tiles_resident();
         self.pyramid().lazy_stats().map(|pyramid| LazyFrame {
             pyramid,
             samples_this_frame: update.map_or(0, |u| u.pyramid_samples),
             tiles_this_frame: update.map_or(0, |u| u.pyramid_tiles),
             levels_unbuilt: update.map_or(0, |u| u.levels_unbuilt),
             levels_waiting: update.map_or(0, |u| u.levels_waiting),
-            tiles_resident: self.pyramid().tiles_resident(),
-            tiles_evicted: self
-                .pyramid()
-                .tiles_resident()
-                .map(|_| update.map_or(0, |u| u.tiles_evicted)),
+            tiles_resident: resident,
+            tiles_evicted: resident.map(|_| update.map_or(0, |u| u.tiles_evicted)),
         })
     }
 

@@ -150,3 +150,24 @@ pub fn copy_golden(name: &str, dir: &std::path::Path, as_name: &str) {
         .unwrap();
     }
 }
+
+/// Asserts level `l` of `got` has the bits and no-data flags of `want`
+/// over level texels `[x0, y0, x1, y1]` (inclusive, clamped to the level).
+pub fn same_window(
+    got: &terraclip::pyramid::PyramidLevel,
+    want: &terraclip::pyramid::PyramidLevel,
+    l: usize,
+    [x0, y0, x1, y1]: [i64; 4],
+) {
+    for y in y0.max(0)..=y1.min(want.height as i64 - 1) {
+        for x in x0.max(0)..=x1.min(want.width as i64 - 1) {
+            let i = y as usize * want.width + x as usize;
+            assert_eq!(
+                got.data[i].to_bits(),
+                want.data[i].to_bits(),
+                "level {l} ({x}, {y})"
+            );
+            assert_eq!(got.nodata[i], want.nodata[i], "level {l} ({x}, {y})");
+        }
+    }
+}
