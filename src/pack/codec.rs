@@ -21,6 +21,7 @@
 //! its phase and the roughness of what it was predicted from.
 
 use super::model::{self, ESCAPE, K, SCALES};
+use super::predict::{self, Planes};
 use crate::pyramid::{PyramidLevel, Rows};
 pub use crate::terrain::Lattice;
 use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
@@ -140,7 +141,7 @@ impl Quant {
             Quant::Step { max_error } => (p + q as f64 * (2.0 * max_error)) as f32,
             Quant::Lattice { offset, scale } => {
                 let kp = ((p - offset) / scale).round() as i64;
-                (offset + (kp + q) as f64 * scale) as f32
+                (offset + kp.saturating_add(q) as f64 * scale) as f32
             }
             Quant::Bits => from_ordered(ordered(p as f32) + q).unwrap_or(f32::NAN),
         }
@@ -149,23 +150,31 @@ impl Quant {
 
 /// The coarser level a tile is predicted from, read with clamped indices.
 pub trait Coarse: Sync {
-    /// Sample (i, j), clamped to the level's extent.
-    fn at(&self, i: i64, j: i64) -> f32;
+    /// Samples across the level.
+    fn width(&self) -> usize;
+    /// Row `j` clamped to the level's extent, whole.
+    fn row(&self, j: i64) -> &[f32];
 }
 
 impl Coarse for PyramidLevel {
-    fn at(&self, i: i64, j: i64) -> f32 {
-        self.get_clamped(i, j)
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn row(&self, j: i64) -> &[f32] {
+        let y = j.clamp(0, self.height as i64 - 1) as usize;
+        &self.data[y * self.width..][..self.width]
     }
 }
 
 /// A band of the coarser level must hold every row the clamped indices
 /// reach: [`coarse_rows`] of the tiles it predicts.
 impl Coarse for Rows<'_> {
-    fn at(&self, i: i64, j: i64) -> f32 {
-        let x = i.clamp(0, self.width as i64 - 1) as usize;
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn row(&self, j: i64) -> &[f32] {
         let y = j.clamp(0, self.height as i64 - 1) as usize;
-        self.data[self.index(x, y)]
+        &self.data[self.index(0, y)..][..self.width]
     }
 }
 
@@ -301,110 +310,55 @@ pub(crate) fn tile_rect(
     (x0, y0, (x0 + t).min(w) - x0, (y0 + t).min(h) - y0)
 }
 
-/// Phase of sample (x, y): which of the four subdivision cases it is (0 on
-/// the coarsest level, which has no coarser one).
+/// The prediction of sample (tx, ty) of a coarsest-level tile, which has
+/// no coarser level: its left neighbour, or at the start of a row the
+/// sample above it (raster order).
 #[inline]
-fn phase(x: usize, y: usize, top: bool) -> usize {
-    if top {
-        0
+fn predict_top(rec: &[f32], w: usize, tx: usize, ty: usize) -> f64 {
+    if tx > 0 {
+        rec[ty * w + tx - 1] as f64
+    } else if ty > 0 {
+        rec[(ty - 1) * w] as f64
     } else {
-        (x & 1) | ((y & 1) << 1)
+        0.0
     }
 }
-
-/// The order a tile's samples are coded in (tile-local indices). The
-/// coarsest level goes in raster order. A finer level goes phase by phase,
-/// as a lifting scheme does: the samples on the coarse grid first, then
-/// those between two of them along a row or a column, then the centres,
-/// so each phase is predicted from the fine samples decoded before it.
-fn coding_order(w: usize, h: usize, top: bool) -> Vec<usize> {
-    if top {
-        return (0..w * h).collect();
-    }
-    let mut out = Vec::with_capacity(w * h);
-    for (px, py) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-        for ty in (py..h).step_by(2) {
-            out.extend((px..w).step_by(2).map(|tx| ty * w + tx));
-        }
-    }
-    out
-}
-
-/// The four-point interpolation at `t` (odd) of a line whose samples at
-/// even positions are `at(k)`, positions clamped to the even ones in
-/// `[0, len)`: the stencil stays inside the tile, so it decodes alone.
-/// Also the line's activity there: the step between the two nearest
-/// samples plus half the steps beside them.
-#[inline]
-fn four_point(t: usize, len: usize, at: impl Fn(usize) -> f32) -> (f64, f64) {
-    let last = (len - 1) & !1;
-    let even = |v: i64| (v.clamp(0, last as i64)) as usize;
-    let t = t as i64;
-    let v = [-3i64, -1, 1, 3].map(|d| at(even(t + d)) as f64);
-    let p = (-v[0] + 9.0 * v[1] + 9.0 * v[2] - v[3]) / 16.0;
-    let act = (v[1] - v[2]).abs() + ((v[0] - v[1]).abs() + (v[2] - v[3]).abs()) / 2.0;
-    (p, act)
-}
-
-/// The prediction of tile sample (tx, ty) from what is decoded before it
-/// ([`coding_order`]): on the coarsest level its left or upper neighbour;
-/// on the coarse grid the coarser level's sample (LH04), sharpened by
-/// [`SHARPEN`] of its Laplacian; between two
-/// coarse-grid samples the four-point interpolation of the fine ones
-/// along the row or column; at a centre the mean of the interpolations of
-/// the row and the column phases. With it, the activity of what it was
-/// predicted from (height units), which picks the sample's model.
-#[inline]
-fn prediction<C: Coarse + ?Sized>(
-    coarse: Option<&C>,
-    rec: &[f32],
-    rect: (usize, usize, usize, usize),
-    tx: usize,
-    ty: usize,
-) -> (f64, f64) {
-    let (x0, y0, w, h) = rect;
-    let Some(c) = coarse else {
-        let p = if tx > 0 {
-            rec[ty * w + tx - 1] as f64
-        } else if ty > 0 {
-            rec[(ty - 1) * w] as f64
-        } else {
-            0.0
-        };
-        return (p, 0.0);
-    };
-    let along_row = || four_point(tx, w, |k| rec[ty * w + k]);
-    let along_col = || four_point(ty, h, |k| rec[k * w + tx]);
-    match (tx & 1, ty & 1) {
-        (0, 0) => {
-            let (i, j) = (((x0 + tx) / 2) as i64, ((y0 + ty) / 2) as i64);
-            let at = |di: i64, dj: i64| c.at(i + di, j + dj) as f64;
-            let act = (at(1, 0) - at(-1, 0)).abs() + (at(0, 1) - at(0, -1)).abs();
-            let lap = at(0, 0) - (at(1, 0) + at(-1, 0) + at(0, 1) + at(0, -1)) / 4.0;
-            (at(0, 0) + SHARPEN * lap, act)
-        }
-        (1, 0) => along_row(),
-        (0, 1) => along_col(),
-        _ => {
-            let ((a, u), (b, v)) = (along_row(), along_col());
-            ((a + b) / 2.0, (u + v) / 2.0)
-        }
-    }
-}
-
-/// How much of the coarse level's Laplacian a coarse-grid sample's
-/// prediction adds back: the coarse sample is a low-pass of the fine
-/// neighbourhood, and a quarter of the detail it lost returns this way
-/// (0.5 and −0.25 coded larger on jacksboro and etopo5; see the commit).
-const SHARPEN: f64 = 0.25;
 
 /// The context of a sample of `phase` whose prediction saw `activity`:
-/// its class is the bit length of the activity in quantisation steps.
+/// its class is the bit length of the activity in whole quantisation
+/// steps, at most `CLASSES − 1`.
 #[inline]
 fn context(phase: usize, activity: f64, unit: f64) -> usize {
-    let steps = (activity / unit).min(1e9) as u64;
+    // At most 10^9 (and NaN becomes that), so the signed conversion, one
+    // instruction, gives what an unsigned one would.
+    let steps = (activity / unit).min(1e9) as i64 as u64;
     let class = (64 - steps.leading_zeros() as usize).min(CLASSES - 1);
     phase * CLASSES + class
+}
+
+/// The model of each sample of phase `ph` of a tile whose contexts chose
+/// `best`, from its prediction and activity.
+fn models_of(
+    ph: usize,
+    pred: &[f64],
+    act: &[f64],
+    quant: Quant,
+    best: &[u8; CONTEXTS],
+    out: &mut Vec<u8>,
+) {
+    out.clear();
+    match quant {
+        Quant::Bits => out.extend(
+            pred.iter()
+                .zip(act)
+                .map(|(&p, &a)| best[context(ph, a, quant.unit(p))]),
+        ),
+        // One step for every prediction.
+        _ => {
+            let unit = quant.unit(0.0);
+            out.extend(act.iter().map(|&a| best[context(ph, a, unit)]))
+        }
+    }
 }
 
 /// Encodes one tile of `level` (its samples `src`), predicted from
@@ -418,38 +372,58 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
 ) -> (Vec<u8>, Vec<f32>) {
     let (x0, y0, w, h) = rect;
     let n = w * h;
-    let mut rec = vec![0f32; n];
-    let mut sym = vec![0usize; n];
-    let mut ctx = vec![0usize; n];
+    // Symbols and contexts in coding order.
+    let mut sym = Vec::with_capacity(n);
+    let mut ctx = Vec::with_capacity(n);
     let mut side = Vec::new();
-    let top = coarse.is_none();
-    let order = coding_order(w, h, top);
-    for &i in &order {
-        let (tx, ty) = (i % w, i / w);
-        let (p, act) = prediction(coarse, &rec, rect, tx, ty);
-        ctx[i] = context(phase(x0 + tx, y0 + ty, top), act, quant.unit(p));
-        let c = quant.code(src.data[src.index(x0 + tx, y0 + ty)], p);
-        rec[i] = c.rec;
-        sym[i] = match c.raw {
+    let mut code = |x: f32, p: f64, c: usize| {
+        ctx.push(c);
+        let coded = quant.code(x, p);
+        sym.push(match coded.raw {
             Some(bits) => {
                 put_varint(&mut side, 1);
                 side.extend_from_slice(&bits.to_le_bytes());
                 ESCAPE
             }
             None => {
-                let s = model::symbol(c.q);
+                let s = model::symbol(coded.q);
                 if s == ESCAPE {
-                    put_varint(&mut side, zigzag(c.q) << 1);
+                    put_varint(&mut side, zigzag(coded.q) << 1);
                 }
                 s
             }
-        };
-    }
+        });
+        coded.rec
+    };
+    let at = |tx: usize, ty: usize| src.data[src.index(x0 + tx, y0 + ty)];
+    let rec = match coarse {
+        None => {
+            let mut rec = vec![0f32; n];
+            for i in 0..n {
+                let (tx, ty) = (i % w, i / w);
+                let p = predict_top(&rec, w, tx, ty);
+                rec[i] = code(at(tx, ty), p, context(0, 0.0, quant.unit(p)));
+            }
+            rec
+        }
+        Some(coarse) => {
+            let mut planes = Planes::new(w, h);
+            let (mut pred, mut act) = (Vec::new(), Vec::new());
+            for ph in 0..4 {
+                predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
+                for (i, (&p, &a)) in pred.iter().zip(&act).enumerate() {
+                    let (tx, ty) = planes.xy(ph, i);
+                    planes.planes[ph][i] = code(at(tx, ty), p, context(ph, a, quant.unit(p)));
+                }
+            }
+            planes.interleave()
+        }
+    };
     // Each context's cheapest model.
     let costs = model::all_costs();
     let mut counts = vec![vec![0u64; model::SYMBOLS]; CONTEXTS];
-    for i in 0..n {
-        counts[ctx[i]][sym[i]] += 1;
+    for (&c, &s) in ctx.iter().zip(&sym) {
+        counts[c][s] += 1;
     }
     let mut best = [0u8; CONTEXTS];
     for (b, counts) in best.iter_mut().zip(&counts) {
@@ -479,12 +453,12 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
         MIXED
     };
     // ANS is a stack: push in the reverse of the decoding order (mask,
-    // then the samples in raster order).
+    // then the samples in coding order).
     let models = model::models();
     let mut ans = DefaultAnsCoder::new();
-    for &i in order.iter().rev() {
-        let m = &models[best[ctx[i]] as usize];
-        ans.encode_symbol(sym[i], m)
+    for (&c, &s) in ctx.iter().zip(&sym).rev() {
+        let m = &models[best[c] as usize];
+        ans.encode_symbol(s, m)
             .expect("every symbol has a nonzero probability");
     }
     if flags == MIXED {
@@ -592,29 +566,70 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         _ => vec![false; n],
     };
     let models = model::decoders();
-    let top = coarse.is_none();
-    let mut rec = vec![0f32; n];
     let mut at = 0usize;
-    for i in coding_order(w, h, top) {
-        let (tx, ty) = (i % w, i / w);
-        let (p, act) = prediction(coarse, &rec, rect, tx, ty);
-        let k = best[context(phase(x0 + tx, y0 + ty, top), act, quant.unit(p))];
-        let s = ans
-            .decode_symbol(&models[k as usize])
-            .map_err(|_| broken("residuals"))?;
-        rec[i] = if s == ESCAPE {
-            let v = get_varint(side, &mut at).ok_or_else(|| broken("side stream"))?;
-            if v == 1 {
-                let b = side.get(at..at + 4).ok_or_else(|| broken("side stream"))?;
-                at += 4;
-                f32::from_bits(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            } else {
-                quant.rec(p, unzigzag(v >> 1))
-            }
+    // Sample `s` decoded against prediction `p`.
+    let mut value = |s: usize, p: f64| -> Result<f32, String> {
+        if s != ESCAPE {
+            return Ok(quant.rec(p, s as i64 - K));
+        }
+        let v = get_varint(side, &mut at).ok_or_else(|| broken("side stream"))?;
+        Ok(if v == 1 {
+            let b = side.get(at..at + 4).ok_or_else(|| broken("side stream"))?;
+            at += 4;
+            f32::from_bits(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
         } else {
-            quant.rec(p, s as i64 - K)
-        };
-    }
+            quant.rec(p, unzigzag(v >> 1))
+        })
+    };
+    let rec = match coarse {
+        None => {
+            let m = &models[best[0] as usize];
+            let mut rec = vec![0f32; n];
+            for i in 0..n {
+                let p = predict_top(&rec, w, i % w, i / w);
+                let s = ans.decode_symbol(m).map_err(|_| broken("residuals"))?;
+                rec[i] = value(s, p)?;
+            }
+            rec
+        }
+        Some(coarse) => {
+            let mut planes = Planes::new(w, h);
+            let (mut pred, mut act) = (Vec::new(), Vec::new());
+            let (mut mk, mut sym) = (Vec::new(), Vec::new());
+            for ph in 0..4 {
+                predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
+                models_of(ph, &pred, &act, quant, &best, &mut mk);
+                sym.clear();
+                for &k in &mk {
+                    let s = ans.decode_symbol(&models[k as usize]);
+                    sym.push(s.map_err(|_| broken("residuals"))? as u16);
+                }
+                let plane = &mut planes.planes[ph];
+                match quant {
+                    Quant::Step { max_error } => {
+                        let step = 2.0 * max_error;
+                        for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
+                            *r = (p + (s as i64 - K) as f64 * step) as f32;
+                        }
+                    }
+                    _ => {
+                        for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
+                            if s as usize != ESCAPE {
+                                *r = quant.rec(p, s as i64 - K);
+                            }
+                        }
+                    }
+                }
+                // Escapes, in coding order, from the side stream.
+                for (i, &s) in sym.iter().enumerate() {
+                    if s as usize == ESCAPE {
+                        plane[i] = value(ESCAPE, pred[i])?;
+                    }
+                }
+            }
+            planes.interleave()
+        }
+    };
     if at != side.len() {
         return Err(format!("{} side-stream bytes left over", side.len() - at));
     }
@@ -772,23 +787,29 @@ impl Packed {
         coarse: Option<&PyramidLevel>,
     ) -> Result<PyramidLevel, TileError> {
         let lv = &self.levels[l];
-        let [nx, ny] = self.tiles_of(l);
+        let [nx, _] = self.tiles_of(l);
         let empty = PyramidLevel::single();
         let c = coarse.unwrap_or(&empty);
-        let tiles: Vec<Tile> = (0..nx * ny)
-            .into_par_iter()
-            .map(|t| self.decode_tile(l, [t % nx, t / nx], c))
-            .collect::<Result<_, _>>()?;
         let mut data = vec![0f32; lv.width * lv.height];
         let mut nodata = vec![false; lv.width * lv.height];
-        for t in &tiles {
-            let [x0, y0, w, h] = t.rect;
-            for row in 0..h {
-                let at = (y0 + row) * lv.width + x0;
-                data[at..at + w].copy_from_slice(&t.data[row * w..][..w]);
-                nodata[at..at + w].copy_from_slice(&t.nodata[row * w..][..w]);
-            }
-        }
+        // A row of tiles at a time, each tile copied into the level as it
+        // is decoded (so its buffers are reused, not held until the end).
+        let band = self.tile * lv.width;
+        data.par_chunks_mut(band)
+            .zip(nodata.par_chunks_mut(band))
+            .enumerate()
+            .try_for_each(|(ty, (data, nodata))| {
+                for tx in 0..nx {
+                    let t = self.decode_tile(l, [tx, ty], c)?;
+                    let [x0, _, w, h] = t.rect;
+                    for row in 0..h {
+                        let at = row * lv.width + x0;
+                        data[at..at + w].copy_from_slice(&t.data[row * w..][..w]);
+                        nodata[at..at + w].copy_from_slice(&t.nodata[row * w..][..w]);
+                    }
+                }
+                Ok(())
+            })?;
         Ok(level_of(lv.width, lv.height, data, nodata))
     }
 

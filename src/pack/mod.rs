@@ -6,6 +6,7 @@
 pub mod codec;
 pub mod file;
 pub mod model;
+mod predict;
 pub mod reader;
 pub mod stream;
 

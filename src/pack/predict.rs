@@ -1,0 +1,216 @@
+//! The predictions a tile's samples are coded against, phase by phase.
+//!
+//! A finer level's tile is coded as four phases, as a lifting scheme does:
+//! the samples on the coarse grid (even column, even row), those between
+//! two of them along a row (odd, even), along a column (even, odd), and
+//! the centres (odd, odd). Each phase is predicted only from the coarser
+//! level and from the phases before it, never from its own samples, so a
+//! whole phase's predictions are computed before any of its residuals is
+//! decoded: the arithmetic runs as straight loops over contiguous rows,
+//! and only the entropy decoder is serial. That is why a tile is held as
+//! four phase planes (each phase's samples, row-major) while it is coded.
+//!
+//! The arithmetic is f64 over f32 samples in a fixed order, with no fused
+//! operations, so encoder and decoder, on any machine, compute the same
+//! predictions and contexts bit for bit.
+
+use super::codec::Coarse;
+
+/// The four-point interpolation weights −1/16, 9/16, 9/16, −1/16 at the
+/// midpoint between `v1` and `v2`, and the activity there: the step
+/// between the two nearest samples plus half the steps beside them.
+#[inline(always)]
+fn four_point(v0: f64, v1: f64, v2: f64, v3: f64) -> (f64, f64) {
+    let p = (-v0 + 9.0 * v1 + 9.0 * v2 - v3) / 16.0;
+    let act = (v1 - v2).abs() + ((v0 - v1).abs() + (v2 - v3).abs()) / 2.0;
+    (p, act)
+}
+
+/// How much of the coarse level's Laplacian a coarse-grid sample's
+/// prediction adds back: the coarse sample is a low-pass of the fine
+/// neighbourhood, and a quarter of the detail it lost returns this way
+/// (0.5 and −0.25 coded larger on jacksboro and etopo5; see the commit).
+const SHARPEN: f64 = 0.25;
+
+/// A tile's samples split into its four phases (phase `px | py << 1`),
+/// each row-major: phase (px, py) holds tile samples (2i + px, 2j + py).
+pub(crate) struct Planes {
+    /// Tile samples across and down.
+    pub w: usize,
+    pub h: usize,
+    /// The phases' samples.
+    pub planes: [Vec<f32>; 4],
+}
+
+impl Planes {
+    pub fn new(w: usize, h: usize) -> Planes {
+        let mut p = Planes {
+            w,
+            h,
+            planes: Default::default(),
+        };
+        for ph in 0..4 {
+            let [c, r] = p.dims(ph);
+            p.planes[ph] = vec![0.0; c * r];
+        }
+        p
+    }
+
+    /// Columns and rows of phase `ph`.
+    #[inline]
+    pub fn dims(&self, ph: usize) -> [usize; 2] {
+        [
+            (self.w - (ph & 1)).div_ceil(2),
+            (self.h - (ph >> 1)).div_ceil(2),
+        ]
+    }
+
+    /// Tile-local (x, y) of phase `ph`'s sample `i`.
+    #[inline]
+    pub fn xy(&self, ph: usize, i: usize) -> (usize, usize) {
+        let cols = self.dims(ph)[0];
+        (2 * (i % cols) + (ph & 1), 2 * (i / cols) + (ph >> 1))
+    }
+
+    /// The tile's samples, row-major.
+    pub fn interleave(&self) -> Vec<f32> {
+        let mut out = vec![0f32; self.w * self.h];
+        for ph in 0..4 {
+            let [cols, rows] = self.dims(ph);
+            let (px, py) = (ph & 1, ph >> 1);
+            for j in 0..rows {
+                let row = &mut out[(2 * j + py) * self.w..][..self.w];
+                let src = &self.planes[ph][j * cols..][..cols];
+                for (d, &s) in row[px..].iter_mut().step_by(2).zip(src) {
+                    *d = s;
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Predicts every sample of phase `ph` (1 to 3) from the phases before it
+/// in `planes`, or (phase 0) from `coarse`, the coarser level, for the
+/// tile whose first sample is (x0, y0) of its level. Writes the
+/// predictions and the activities (height units) of what each was
+/// predicted from into `pred` and `act`, in the phase's order.
+pub(crate) fn phase<C: Coarse + ?Sized>(
+    ph: usize,
+    planes: &Planes,
+    coarse: &C,
+    (x0, y0): (usize, usize),
+    pred: &mut Vec<f64>,
+    act: &mut Vec<f64>,
+) {
+    let [cols, rows] = planes.dims(ph);
+    pred.clear();
+    act.clear();
+    pred.resize(cols * rows, 0.0);
+    act.resize(cols * rows, 0.0);
+    let out = pred
+        .chunks_exact_mut(cols.max(1))
+        .zip(act.chunks_exact_mut(cols.max(1)));
+    let even = &planes.planes[0];
+    let [ecols, erows] = planes.dims(0);
+    // Rows of an even-row plane at j − 1, j, j + 1, j + 2, clamped to the
+    // tile (the stencil stays inside it, so a tile decodes alone).
+    let near = |j: usize| {
+        let last = erows - 1;
+        [j.saturating_sub(1), j, (j + 1).min(last), (j + 2).min(last)]
+    };
+    let mut line = Vec::new();
+    match ph {
+        0 => {
+            // The coarser level's samples under the tile and one around
+            // it, read once with clamped indices.
+            let (cw, ch) = (cols + 2, rows + 2);
+            let (ci, cj) = ((x0 / 2) as i64 - 1, (y0 / 2) as i64 - 1);
+            let last = coarse.width() as i64 - 1;
+            let mut win = Vec::with_capacity(cw * ch);
+            for j in 0..ch as i64 {
+                let row = coarse.row(cj + j);
+                win.extend((0..cw as i64).map(|i| row[(ci + i).clamp(0, last) as usize] as f64));
+            }
+            for (j, (pred, act)) in out.enumerate() {
+                let (u, m, d) = (&win[j * cw..], &win[(j + 1) * cw..], &win[(j + 2) * cw..]);
+                for i in 0..cols {
+                    let (l, c, r, u, d) = (m[i], m[i + 1], m[i + 2], u[i + 1], d[i + 1]);
+                    act[i] = (r - l).abs() + (d - u).abs();
+                    let lap = c - (r + l + d + u) / 4.0;
+                    pred[i] = c + SHARPEN * lap;
+                }
+            }
+        }
+        1 => {
+            for (j, (pred, act)) in out.enumerate() {
+                along_row(&even[j * ecols..][..ecols], &mut line, pred, act);
+            }
+        }
+        2 => {
+            for (j, (pred, act)) in out.enumerate() {
+                let r = near(j).map(|k| &even[k * ecols..][..ecols]);
+                along_col(r, pred, act);
+            }
+        }
+        _ => {
+            // The centres: the mean of the row interpolation (over the
+            // column phase's samples of the same row) and the column
+            // interpolation (over the row phase's samples of the same
+            // column).
+            let (col_phase, row_phase) = (&planes.planes[2], &planes.planes[1]);
+            let ccols = planes.dims(2)[0];
+            let rcols = planes.dims(1)[0];
+            let (mut p2, mut a2) = (vec![0f64; cols], vec![0f64; cols]);
+            for (j, (pred, act)) in out.enumerate() {
+                along_row(&col_phase[j * ccols..][..ccols], &mut line, pred, act);
+                let r = near(j).map(|k| &row_phase[k * rcols..][..rcols]);
+                along_col(r, &mut p2, &mut a2);
+                for (p, b) in pred.iter_mut().zip(&p2) {
+                    *p = (*p + b) / 2.0;
+                }
+                for (a, v) in act.iter_mut().zip(&a2) {
+                    *a = (*a + v) / 2.0;
+                }
+            }
+        }
+    }
+}
+
+/// The four-point interpolations down the columns of rows `r` (the even
+/// rows j − 1 ..= j + 2, clamped), at their midpoints between j and j + 1.
+#[inline]
+fn along_col(r: [&[f32]; 4], pred: &mut [f64], act: &mut [f64]) {
+    let n = pred.len();
+    let (r0, r1, r2, r3) = (&r[0][..n], &r[1][..n], &r[2][..n], &r[3][..n]);
+    for i in 0..n {
+        let (p, a) = four_point(r0[i] as f64, r1[i] as f64, r2[i] as f64, r3[i] as f64);
+        pred[i] = p;
+        act[i] = a;
+    }
+}
+
+/// The four-point interpolations at the midpoints of `e`, a line's
+/// samples at even positions, clamped to its ends: midpoint m reads
+/// e[m − 1 ..= m + 2], so `line` holds `e` as f64 with one copy of its
+/// first sample before it and two of its last after.
+#[inline]
+fn along_row(e: &[f32], line: &mut Vec<f64>, pred: &mut [f64], act: &mut [f64]) {
+    let (first, last) = (e[0] as f64, e[e.len() - 1] as f64);
+    line.clear();
+    line.push(first);
+    line.extend(e.iter().map(|&v| v as f64));
+    line.extend([last, last]);
+    let n = pred.len();
+    let (v0, v1, v2, v3) = (
+        &line[..n],
+        &line[1..n + 1],
+        &line[2..n + 2],
+        &line[3..n + 3],
+    );
+    for i in 0..n {
+        let (p, a) = four_point(v0[i], v1[i], v2[i], v3[i]);
+        pred[i] = p;
+        act[i] = a;
+    }
+}
