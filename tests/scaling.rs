@@ -53,12 +53,48 @@ fn clipmap_frames_are_identical_across_terrain_sizes() {
     );
 }
 
-/// The report's exact figures: a full rebuild writes L·n² texels, a walk of
-/// one texel per frame far fewer; clipmap triangles equal across sizes.
+/// `packs` times packs in place of the procedural sizes (which it then
+/// ignores), with frames interleaved the same way: lossless packs of the
+/// 256² and 512² maps draw what those maps draw, and brute force does not
+/// run on them.
 #[test]
-fn scaling_report_figures() {
-    let opts = Options {
+fn scaling_times_packs_in_place_of_sizes() {
+    use terraclip::pack::stream;
+    use terraclip::pyramid::Filter;
+    use terraclip::terrain::rows::ProceduralRows;
+    let dir = std::env::temp_dir().join(format!("terraclip-scaling-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut packs = vec![];
+    for size in [256, 512] {
+        let path = dir.join(format!("p{size}.tcz"));
+        let o = stream::Options::new(0.0, 64, Filter::default(), "scaling");
+        let src = ProceduralRows::new(Procedural::new(20041, size, size)).unwrap();
+        stream::pack(&src, &path, &o, &mut |_, _| {}).unwrap();
+        packs.push(path);
+    }
+    let mut opts = figures_options();
+    let mut base = Scene::default_scene();
+    base.camera.position = [1280.0, -1280.0, 500.0];
+    base.camera.look_at = Some([1800.0, -1900.0, 100.0]);
+    let maps = scaling::run(&base, &opts, |_| {}).unwrap();
+    (opts.sizes, opts.packs) = (vec![1024, 2048], packs);
+    let r = scaling::run(&base, &opts, |_| {}).unwrap();
+    let sizes: Vec<usize> = r.sizes.iter().map(|s| s.size).collect();
+    assert_eq!(sizes, [256, 512]);
+    for (p, m) in r.sizes.iter().zip(&maps.sizes) {
+        assert_eq!(p.clipmap_triangles, m.clipmap_triangles);
+        assert_eq!((p.brute_frame_ms, p.brute_triangles), (None, None));
+    }
+    opts.packs = vec![dir.join("missing.tcz")];
+    let e = scaling::run(&base, &opts, |_| {}).unwrap_err().to_string();
+    assert!(e.contains("missing.tcz"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn figures_options() -> Options {
+    Options {
         sizes: vec![256, 512],
+        packs: vec![],
         n: 31,
         levels: 3,
         frames: 2,
@@ -70,7 +106,14 @@ fn scaling_report_figures() {
         first_n: 31,
         first_budget: 20_000,
         first_max_frames: 200,
-    };
+    }
+}
+
+/// The report's exact figures: a full rebuild writes L·n² texels, a walk of
+/// one texel per frame far fewer; clipmap triangles equal across sizes.
+#[test]
+fn scaling_report_figures() {
+    let opts = figures_options();
     let mut base = Scene::default_scene();
     base.camera.position = [1280.0, -1280.0, 500.0];
     base.camera.look_at = Some([1800.0, -1900.0, 100.0]);
@@ -139,6 +182,7 @@ fn scaling_report_figures() {
 fn bad_scaling_options_are_errors() {
     let ok = Options {
         sizes: vec![256],
+        packs: vec![],
         n: 31,
         levels: 3,
         frames: 1,

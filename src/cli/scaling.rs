@@ -13,6 +13,10 @@ pub struct Args {
     /// first.
     #[arg(long, default_value = "1024,2048,4096,16384", value_delimiter = ',')]
     pub sizes: Vec<usize>,
+    /// Packs to time instead of the procedural sizes, comma-separated,
+    /// smallest first (their frames interleaved like the sizes').
+    #[arg(long, value_delimiter = ',')]
+    pub packs: Vec<PathBuf>,
     /// Clipmap n and levels of the size test.
     #[arg(long, default_value_t = 127)]
     pub n: i64,
@@ -47,6 +51,7 @@ impl Args {
     fn options(&self) -> terraclip::studies::scaling::Options {
         terraclip::studies::scaling::Options {
             sizes: self.sizes.clone(),
+            packs: self.packs.clone(),
             n: self.n,
             levels: self.levels,
             frames: self.frames,

@@ -16,9 +16,12 @@
 //! Each level is cut into square tiles coded apart, so any tile of any
 //! level can be decoded alone from the reconstructed coarser level around
 //! it: what a clipmap update needs for the strips it uncovers. A tile's
-//! residuals are entropy-coded with constriction's ANS coder, each sample
-//! under the model ([`super::model`]) the encoder picked for its context:
-//! its phase and the roughness of what it was predicted from.
+//! residuals are entropy-coded with constriction's ANS coder, in two
+//! streams taken in turn, each sample under the model ([`super::model`])
+//! the encoder picked for its context: its phase and the roughness of what
+//! it was predicted from. No phase is predicted from its own samples, so a
+//! decoder computes a whole phase's predictions and contexts before
+//! entropy-decoding it ([`super::predict`]).
 
 use super::model::{self, ESCAPE, K, SCALES};
 use super::predict::{self, Planes};
@@ -254,9 +257,16 @@ const CLASSES: usize = 8;
 /// Contexts: phases × classes, one model index each in the tile header.
 const CONTEXTS: usize = 4 * CLASSES;
 /// Header bytes before the model indices: flags, side-stream length
-/// (u32), no-data count (u32), and a mask (u32) of the contexts the tile
-/// uses, each of which then has its model index in one byte.
-const HEADER: usize = 1 + 4 + 4 + 4;
+/// (u32), no-data count (u32), the first ANS stream's length in words
+/// (u32), and a mask (u32) of the contexts the tile uses, each of which
+/// then has its model index in one byte.
+const HEADER: usize = 1 + 4 + 4 + 4 + 4;
+/// A tile's residuals go to two ANS streams, alternately (sample k of a
+/// phase to stream k mod 2), so a decoder's two dependency chains through
+/// the coder's state overlap: constriction's lookup decoder gave 135 M
+/// symbols/s from one stream and 225–245 M from two taken in turn on the
+/// 2-core machine, for 8 more bytes a tile (docs/pack.md).
+const STREAMS: usize = 2;
 
 fn zigzag(q: i64) -> u64 {
     ((q << 1) ^ (q >> 63)) as u64
@@ -324,15 +334,24 @@ fn predict_top(rec: &[f32], w: usize, tx: usize, ty: usize) -> f64 {
     }
 }
 
-/// The context of a sample of `phase` whose prediction saw `activity`:
-/// its class is the bit length of the activity in whole quantisation
-/// steps, at most `CLASSES − 1`.
+/// The activities at which a sample's class goes up: `unit`·2^b, exact
+/// (a power-of-two scaling), so class c means c whole-step bit lengths
+/// without a division.
 #[inline]
-fn context(phase: usize, activity: f64, unit: f64) -> usize {
-    // At most 10^9 (and NaN becomes that), so the signed conversion, one
-    // instruction, gives what an unsigned one would.
-    let steps = (activity / unit).min(1e9) as i64 as u64;
-    let class = (64 - steps.leading_zeros() as usize).min(CLASSES - 1);
+fn thresholds(unit: f64) -> [f64; CLASSES - 1] {
+    let mut t = [unit; CLASSES - 1];
+    for b in 1..CLASSES - 1 {
+        t[b] = t[b - 1] * 2.0;
+    }
+    t
+}
+
+/// The context of a sample of `phase` whose prediction saw `activity`,
+/// classes split at `thresholds`: its class is the bit length of the
+/// activity in whole quantisation steps, at most `CLASSES − 1`.
+#[inline]
+fn context(phase: usize, activity: f64, thresholds: &[f64; CLASSES - 1]) -> usize {
+    let class: usize = thresholds.iter().map(|&t| usize::from(activity >= t)).sum();
     phase * CLASSES + class
 }
 
@@ -351,14 +370,48 @@ fn models_of(
         Quant::Bits => out.extend(
             pred.iter()
                 .zip(act)
-                .map(|(&p, &a)| best[context(ph, a, quant.unit(p))]),
+                .map(|(&p, &a)| best[context(ph, a, &thresholds(quant.unit(p)))]),
         ),
         // One step for every prediction.
+        // (a pass per threshold over the phase, each a vector loop, then
+        // one table lookup a sample).
         _ => {
-            let unit = quant.unit(0.0);
-            out.extend(act.iter().map(|&a| best[context(ph, a, unit)]))
+            out.resize(act.len(), 0);
+            for t in thresholds(quant.unit(0.0)) {
+                for (c, &a) in out.iter_mut().zip(act) {
+                    *c += u8::from(a >= t);
+                }
+            }
+            let best = &best[ph * CLASSES..][..CLASSES];
+            for c in out.iter_mut() {
+                *c = best[*c as usize];
+            }
         }
     }
+}
+
+/// Decodes one symbol under each model of `mk` into `sym`, sample k from
+/// stream k mod 2.
+fn decode_symbols(
+    ans: &mut [DefaultAnsCoder; STREAMS],
+    mk: &[u8],
+    sym: &mut Vec<u16>,
+) -> Result<(), ()> {
+    let models = model::decoders();
+    let [a, b] = ans;
+    sym.clear();
+    sym.reserve(mk.len());
+    let mut pairs = mk.chunks_exact(2);
+    for k in &mut pairs {
+        let x = a.decode_symbol(&models[k[0] as usize]);
+        let y = b.decode_symbol(&models[k[1] as usize]);
+        sym.push(x.map_err(|_| ())? as u16);
+        sym.push(y.map_err(|_| ())? as u16);
+    }
+    if let [k] = pairs.remainder() {
+        sym.push(a.decode_symbol(&models[*k as usize]).map_err(|_| ())? as u16);
+    }
+    Ok(())
 }
 
 /// Encodes one tile of `level` (its samples `src`), predicted from
@@ -396,14 +449,17 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
         coded.rec
     };
     let at = |tx: usize, ty: usize| src.data[src.index(x0 + tx, y0 + ty)];
+    // The phases' lengths in coding order.
+    let mut segments = Vec::with_capacity(4);
     let rec = match coarse {
         None => {
             let mut rec = vec![0f32; n];
             for i in 0..n {
                 let (tx, ty) = (i % w, i / w);
                 let p = predict_top(&rec, w, tx, ty);
-                rec[i] = code(at(tx, ty), p, context(0, 0.0, quant.unit(p)));
+                rec[i] = code(at(tx, ty), p, context(0, 0.0, &thresholds(quant.unit(p))));
             }
+            segments.push(n);
             rec
         }
         Some(coarse) => {
@@ -413,8 +469,10 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
                 predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
                 for (i, (&p, &a)) in pred.iter().zip(&act).enumerate() {
                     let (tx, ty) = planes.xy(ph, i);
-                    planes.planes[ph][i] = code(at(tx, ty), p, context(ph, a, quant.unit(p)));
+                    let c = context(ph, a, &thresholds(quant.unit(p)));
+                    planes.planes[ph][i] = code(at(tx, ty), p, c);
                 }
+                segments.push(pred.len());
             }
             planes.interleave()
         }
@@ -452,30 +510,39 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
     } else {
         MIXED
     };
-    // ANS is a stack: push in the reverse of the decoding order (mask,
-    // then the samples in coding order).
+    // ANS is a stack: push in the reverse of the decoding order (the mask
+    // on the first stream, then the samples in coding order, sample k of
+    // each phase on stream k mod 2).
     let models = model::models();
-    let mut ans = DefaultAnsCoder::new();
-    for (&c, &s) in ctx.iter().zip(&sym).rev() {
-        let m = &models[best[c] as usize];
-        ans.encode_symbol(s, m)
-            .expect("every symbol has a nonzero probability");
+    let mut ans: [DefaultAnsCoder; STREAMS] = Default::default();
+    let mut end = n;
+    for &len in segments.iter().rev() {
+        for k in (0..len).rev() {
+            let i = end - len + k;
+            ans[k % STREAMS]
+                .encode_symbol(sym[i], &models[best[ctx[i]] as usize])
+                .expect("every symbol has a nonzero probability");
+        }
+        end -= len;
     }
     if flags == MIXED {
         let mm = mask_model(count, n);
         for &b in nodata.iter().rev() {
-            ans.encode_symbol(usize::from(b), &mm)
+            ans[0]
+                .encode_symbol(usize::from(b), &mm)
                 .expect("both mask symbols have nonzero probability");
         }
     }
-    let words = ans.into_compressed().unwrap_or_default();
+    let [first, second] = ans.map(|a| a.into_compressed().unwrap_or_default());
     let used: u32 = (0..CONTEXTS)
         .filter(|&c| counts[c].iter().any(|&k| k > 0))
         .fold(0, |m, c| m | 1 << c);
-    let mut out = Vec::with_capacity(HEADER + CONTEXTS + side.len() + 4 * words.len());
+    let words = first.len() + second.len();
+    let mut out = Vec::with_capacity(HEADER + CONTEXTS + side.len() + 4 * words);
     out.push(flags);
     out.extend_from_slice(&(side.len() as u32).to_le_bytes());
     out.extend_from_slice(&count.to_le_bytes());
+    out.extend_from_slice(&(first.len() as u32).to_le_bytes());
     out.extend_from_slice(&used.to_le_bytes());
     out.extend(
         (0..CONTEXTS)
@@ -483,7 +550,7 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             .map(|c| best[c]),
     );
     out.extend_from_slice(&side);
-    for w in words {
+    for w in first.into_iter().chain(second) {
         out.extend_from_slice(&w.to_le_bytes());
     }
     (out, rec)
@@ -513,7 +580,8 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let side_len = le(1) as usize;
     let count = le(5);
-    let used = le(9);
+    let first = le(9) as usize;
+    let used = le(13);
     let listed = used.count_ones() as usize;
     if bytes.len() < HEADER + listed {
         return Err(format!(
@@ -550,22 +618,35 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect();
-    let mut ans = DefaultAnsCoder::from_compressed(words)
-        .map_err(|_| "the coded stream ends in a zero word".to_string())?;
+    if first > words.len() {
+        return Err(format!(
+            "first stream of {first} words does not fit the tile's {}",
+            words.len()
+        ));
+    }
+    let stream = |w: &[u32]| {
+        DefaultAnsCoder::from_compressed(w.to_vec())
+            .map_err(|_| "a coded stream ends in a zero word".to_string())
+    };
+    let mut ans = [stream(&words[..first])?, stream(&words[first..])?];
     let broken = |what: &str| format!("coded stream broken in the {what}");
     let nodata: Vec<bool> = match flags {
         MIXED => {
             let mm = mask_model(count, n);
             let mut v = Vec::with_capacity(n);
             for _ in 0..n {
-                v.push(ans.decode_symbol(&mm).map_err(|_| broken("no-data mask"))? == 1);
+                v.push(
+                    ans[0]
+                        .decode_symbol(&mm)
+                        .map_err(|_| broken("no-data mask"))?
+                        == 1,
+                );
             }
             v
         }
         ALL_NODATA => vec![true; n],
         _ => vec![false; n],
     };
-    let models = model::decoders();
     let mut at = 0usize;
     // Sample `s` decoded against prediction `p`.
     let mut value = |s: usize, p: f64| -> Result<f32, String> {
@@ -583,12 +664,14 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     };
     let rec = match coarse {
         None => {
-            let m = &models[best[0] as usize];
+            // One context: the symbols first, then the serial prediction.
+            let mut sym = Vec::new();
+            decode_symbols(&mut ans, &vec![best[0]; n], &mut sym)
+                .map_err(|_| broken("residuals"))?;
             let mut rec = vec![0f32; n];
-            for i in 0..n {
+            for (i, &s) in sym.iter().enumerate() {
                 let p = predict_top(&rec, w, i % w, i / w);
-                let s = ans.decode_symbol(m).map_err(|_| broken("residuals"))?;
-                rec[i] = value(s, p)?;
+                rec[i] = value(s as usize, p)?;
             }
             rec
         }
@@ -599,11 +682,7 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
             for ph in 0..4 {
                 predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
                 models_of(ph, &pred, &act, quant, &best, &mut mk);
-                sym.clear();
-                for &k in &mk {
-                    let s = ans.decode_symbol(&models[k as usize]);
-                    sym.push(s.map_err(|_| broken("residuals"))? as u16);
-                }
+                decode_symbols(&mut ans, &mk, &mut sym).map_err(|_| broken("residuals"))?;
                 let plane = &mut planes.planes[ph];
                 match quant {
                     Quant::Step { max_error } => {
@@ -633,7 +712,7 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     if at != side.len() {
         return Err(format!("{} side-stream bytes left over", side.len() - at));
     }
-    if !ans.is_empty() {
+    if ans.iter().any(|a| !a.is_empty()) {
         return Err("coded words left over".into());
     }
     Ok((rec, nodata))

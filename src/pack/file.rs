@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! "TCZPACK\0"             8 bytes, the magic
-//! version                 u32 LE (2)
+//! version                 u32 LE (3)
 //! header length           u32 LE
 //! header CRC-32           u32 LE
 //! header                  JSON: map size, cell size, filter, bound, tile, levels
@@ -26,9 +26,10 @@ use std::path::{Path, PathBuf};
 
 /// The first bytes of every pack.
 pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
-/// The version this build writes and reads: 2 codes residuals under
-/// 14-bit models decoded through lookup tables (1 had 24-bit models).
-pub const VERSION: u32 = 2;
+/// The version this build writes and reads: 3 codes each tile's residuals
+/// in two interleaved ANS streams under 14-bit models decoded through
+/// lookup tables (2 had one stream, 1 had 24-bit models).
+pub const VERSION: u32 = 3;
 /// Bytes of one index entry.
 const ENTRY: usize = 16;
 
@@ -280,7 +281,8 @@ pub(crate) fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize),
     let version = u32_at(8);
     if version != VERSION {
         return Err(format!(
-            "pack version {version}; this build reads version {VERSION}"
+            "pack version {version}; this build reads version {VERSION} \
+             (pack the map again with this build)"
         ));
     }
     let len = u32_at(12) as usize;

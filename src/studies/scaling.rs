@@ -29,6 +29,11 @@ use std::time::Instant;
 pub struct Options {
     /// Square procedural terrains, texels per side, smallest first.
     pub sizes: Vec<usize>,
+    /// Packs to time instead of the procedural sizes (smallest first),
+    /// each decoded tile by tile as the clipmap reaches it: the same
+    /// interleaved frames, so a small and a large pack compare in one
+    /// process. Brute force does not run on them.
+    pub packs: Vec<std::path::PathBuf>,
     /// Clipmap n and level count for the size test (the clipmap must fit in
     /// the smallest map for the views to match).
     pub n: i64,
@@ -59,6 +64,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             sizes: vec![1024, 2048, 4096, 16384],
+            packs: Vec::new(),
             n: 127,
             levels: 3,
             frames: 40,
@@ -284,12 +290,29 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     let mut sessions = Vec::new();
     let mut rows = Vec::new();
     let (mut hm_bytes, mut pyr_bytes) = (0, 0);
-    for &size in &opts.sizes {
-        tick(&format!("building {size}²"));
-        let s = scene(base, size, LodScheme::Clipmap, opts);
+    let sources: Vec<Option<&std::path::Path>> = if opts.packs.is_empty() {
+        vec![None; opts.sizes.len()]
+    } else {
+        opts.packs.iter().map(|p| Some(p.as_path())).collect()
+    };
+    for (k, pack) in sources.iter().enumerate() {
+        let mut s = scene(
+            base,
+            opts.sizes.get(k).copied().unwrap_or(0),
+            LodScheme::Clipmap,
+            opts,
+        );
+        if let Some(pack) = pack {
+            tick(&format!("opening {}", pack.display()));
+            s.terrain.procedural = None;
+            s.terrain.file = Some(std::path::absolute(pack).map_err(|e| Error::io(pack, e))?);
+        } else {
+            tick(&format!("building {}²", opts.sizes[k]));
+        }
         s.validate()?;
         let mut passes = Passes::default();
         let session = Session::new(&s, &mut passes)?;
+        let size = session.pyramid().levels[0].width;
         let (h, p) = bytes(session.pyramid());
         hm_bytes += h;
         pyr_bytes += p;
@@ -315,7 +338,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 
     // Interleaved frames: one of each size per step of the pan, eye over
     // the smallest map's centre.
-    let cam = centred_camera(base, &sessions[0], opts.sizes[0], opts);
+    let cam = centred_camera(base, &sessions[0], rows[0].size, opts);
     let step = sessions[0].world.cell[0];
     let mut times = vec![Vec::new(); sessions.len()];
     for f in 0..=opts.frames {
@@ -339,8 +362,12 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     }
     drop(sessions);
 
-    // Brute force on the sizes it can afford.
-    for row in rows.iter_mut().filter(|r| r.size <= opts.brute_max) {
+    // Brute force on the sizes it can afford (procedural ones).
+    let procedural = opts.packs.is_empty();
+    for row in rows
+        .iter_mut()
+        .filter(|r| procedural && r.size <= opts.brute_max)
+    {
         tick(&format!("brute force {}²", row.size));
         let s = scene(base, row.size, LodScheme::BruteForce, opts);
         let mut session = Session::new(&s, &mut Passes::default())?;
