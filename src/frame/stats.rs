@@ -38,17 +38,24 @@ impl Passes {
     }
     /// Wall time of every pass (ms).
     pub fn total_ms(&self) -> f64 {
-        self.0.iter().map(|p| p.ms).sum()
+        plus_sum(self.0.iter().map(|p| p.ms))
     }
 }
 
 /// Total time of the passes in `passes` named `names` (ms).
 pub fn pass_ms(passes: &[Pass], names: &[&str]) -> f64 {
-    passes
-        .iter()
-        .filter(|p| names.contains(&p.name.as_str()))
-        .map(|p| p.ms)
-        .sum()
+    plus_sum(
+        passes
+            .iter()
+            .filter(|p| names.contains(&p.name.as_str()))
+            .map(|p| p.ms),
+    )
+}
+
+/// A sum that starts from +0: `Iterator::sum` of f64 starts from −0, so a pass that did not
+/// run would print as "-0 ms".
+fn plus_sum(v: impl Iterator<Item = f64>) -> f64 {
+    v.fold(0.0, |a, b| a + b)
 }
 
 /// The median of timings (the upper one of an even count).
@@ -56,4 +63,15 @@ pub fn median(v: &[f64]) -> f64 {
     let mut s = v.to_vec();
     s.sort_by(f64::total_cmp);
     s[s.len() / 2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pass_that_did_not_run_took_plus_zero() {
+        assert_eq!(pass_ms(&[], &["pyramid"]).to_bits(), 0f64.to_bits());
+        assert_eq!(Passes::default().total_ms().to_bits(), 0f64.to_bits());
+    }
 }
