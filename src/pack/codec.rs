@@ -139,6 +139,7 @@ impl Quant {
     }
 
     /// The sample residual `q` reconstructs against prediction `p`.
+    #[inline]
     fn rec(&self, p: f64, q: i64) -> f32 {
         match *self {
             Quant::Step { max_error } => (p + q as f64 * (2.0 * max_error)) as f32,
@@ -372,9 +373,9 @@ fn models_of(
                 .zip(act)
                 .map(|(&p, &a)| best[context(ph, a, &thresholds(quant.unit(p)))]),
         ),
-        // One step for every prediction.
-        // (a pass per threshold over the phase, each a vector loop, then
-        // one table lookup a sample).
+        // One step for every prediction, so one set of thresholds: a pass
+        // per threshold over the phase (each a vector loop), then one table
+        // lookup a sample.
         _ => {
             out.resize(act.len(), 0);
             for t in thresholds(quant.unit(0.0)) {
@@ -457,7 +458,8 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             for i in 0..n {
                 let (tx, ty) = (i % w, i / w);
                 let p = predict_top(&rec, w, tx, ty);
-                rec[i] = code(at(tx, ty), p, context(0, 0.0, &thresholds(quant.unit(p))));
+                // The coarsest level has one context: no activity is measured.
+                rec[i] = code(at(tx, ty), p, 0);
             }
             segments.push(n);
             rec
@@ -684,20 +686,9 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
                 models_of(ph, &pred, &act, quant, &best, &mut mk);
                 decode_symbols(&mut ans, &mk, &mut sym).map_err(|_| broken("residuals"))?;
                 let plane = &mut planes.planes[ph];
-                match quant {
-                    Quant::Step { max_error } => {
-                        let step = 2.0 * max_error;
-                        for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
-                            *r = (p + (s as i64 - K) as f64 * step) as f32;
-                        }
-                    }
-                    _ => {
-                        for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
-                            if s as usize != ESCAPE {
-                                *r = quant.rec(p, s as i64 - K);
-                            }
-                        }
-                    }
+                // An escape's value is filled in below; what this writes there is overwritten.
+                for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
+                    *r = quant.rec(p, s as i64 - K);
                 }
                 // Escapes, in coding order, from the side stream.
                 for (i, &s) in sym.iter().enumerate() {
