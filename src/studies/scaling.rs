@@ -231,19 +231,36 @@ pub struct Report {
     pub memory: MemoryRow,
 }
 
-/// The scene for one size: the default scene's camera and shading over a
-/// procedural map of `size`², with scheme `lod`.
-fn scene(base: &Scene, size: usize, lod: LodScheme, opts: &Options) -> Scene {
+/// Where a study's terrain comes from.
+#[derive(Clone, Copy)]
+enum Source<'a> {
+    /// A procedural map of this size².
+    Size(usize),
+    /// A pack, read as a scene names one.
+    Pack(&'a std::path::Path),
+}
+
+/// The scene for one source: the default scene's camera and shading over
+/// `source`, with scheme `lod`.
+fn scene(base: &Scene, source: Source, lod: LodScheme, opts: &Options) -> Result<Scene> {
     let mut s = base.clone();
-    let seed = base.terrain.procedural.as_ref().map_or(20041, |p| p.seed);
-    s.terrain.file = None;
-    s.terrain.procedural = Some(Procedural::new(seed, size, size));
+    match source {
+        Source::Size(size) => {
+            let seed = base.terrain.procedural.as_ref().map_or(20041, |p| p.seed);
+            s.terrain.file = None;
+            s.terrain.procedural = Some(Procedural::new(seed, size, size));
+        }
+        Source::Pack(pack) => {
+            s.terrain.procedural = None;
+            s.terrain.file = Some(std::path::absolute(pack).map_err(|e| Error::io(pack, e))?);
+        }
+    }
     s.lod.scheme = lod;
     s.lod.n = opts.n;
     s.lod.levels = Some(opts.levels);
     s.image.width = opts.image[0];
     s.image.height = opts.image[1];
-    s
+    Ok(s)
 }
 
 fn time_frame(session: &mut Session, cam: &crate::scene::camera::Camera) -> Result<(f64, usize)> {
@@ -282,7 +299,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
             "must be within 1..=1000",
         ));
     }
-    scene(base, opts.sizes[0], LodScheme::Clipmap, opts).validate()?;
+    scene(base, Source::Size(opts.sizes[0]), LodScheme::Clipmap, opts)?.validate()?;
     // First, in a process that has built nothing yet.
     tick("lazy first frame");
     let first_frame = first_frame(base, opts)?;
@@ -290,25 +307,17 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
     let mut sessions = Vec::new();
     let mut rows = Vec::new();
     let (mut hm_bytes, mut pyr_bytes) = (0, 0);
-    let sources: Vec<Option<&std::path::Path>> = if opts.packs.is_empty() {
-        vec![None; opts.sizes.len()]
+    let sources: Vec<Source> = if opts.packs.is_empty() {
+        opts.sizes.iter().map(|&n| Source::Size(n)).collect()
     } else {
-        opts.packs.iter().map(|p| Some(p.as_path())).collect()
+        opts.packs.iter().map(|p| Source::Pack(p)).collect()
     };
-    for (k, pack) in sources.iter().enumerate() {
-        let mut s = scene(
-            base,
-            opts.sizes.get(k).copied().unwrap_or(0),
-            LodScheme::Clipmap,
-            opts,
-        );
-        if let Some(pack) = pack {
-            tick(&format!("opening {}", pack.display()));
-            s.terrain.procedural = None;
-            s.terrain.file = Some(std::path::absolute(pack).map_err(|e| Error::io(pack, e))?);
-        } else {
-            tick(&format!("building {}²", opts.sizes[k]));
-        }
+    for &source in &sources {
+        tick(&match source {
+            Source::Size(n) => format!("building {n}²"),
+            Source::Pack(p) => format!("opening {}", p.display()),
+        });
+        let s = scene(base, source, LodScheme::Clipmap, opts)?;
         s.validate()?;
         let mut passes = Passes::default();
         let session = Session::new(&s, &mut passes)?;
@@ -369,7 +378,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
         .filter(|r| procedural && r.size <= opts.brute_max)
     {
         tick(&format!("brute force {}²", row.size));
-        let s = scene(base, row.size, LodScheme::BruteForce, opts);
+        let s = scene(base, Source::Size(row.size), LodScheme::BruteForce, opts)?;
         let mut session = Session::new(&s, &mut Passes::default())?;
         let mut t = Vec::new();
         for _ in 0..3 {
@@ -403,7 +412,7 @@ pub fn run(base: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<R
 /// are drawn.
 fn first_frame(base: &Scene, opts: &Options) -> Result<FirstFrameRow> {
     let size = *opts.sizes.last().expect("one size at least");
-    let mut s = scene(base, size, LodScheme::Clipmap, opts);
+    let mut s = scene(base, Source::Size(size), LodScheme::Clipmap, opts)?;
     s.lod.n = opts.first_n;
     s.lod.levels = None;
     s.pyramid.lazy = true;
