@@ -364,6 +364,7 @@ fn models_of(
     act: &[f64],
     quant: Quant,
     best: &[u8; CONTEXTS],
+    class: &mut Vec<u64>,
     out: &mut Vec<u8>,
 ) {
     out.clear();
@@ -373,20 +374,18 @@ fn models_of(
                 .zip(act)
                 .map(|(&p, &a)| best[context(ph, a, &thresholds(quant.unit(p)))]),
         ),
-        // One step for every prediction, so one set of thresholds: a pass
-        // per threshold over the phase (each a vector loop), then one table
-        // lookup a sample.
+        // One step for every prediction, so one set of thresholds: the
+        // classes first, counted in u64 (the compared values' width) in one
+        // straight loop that vectorises, then one table lookup a sample.
         _ => {
-            out.resize(act.len(), 0);
-            for t in thresholds(quant.unit(0.0)) {
-                for (c, &a) in out.iter_mut().zip(act) {
-                    *c += u8::from(a >= t);
-                }
-            }
+            let t = thresholds(quant.unit(0.0));
             let best = &best[ph * CLASSES..][..CLASSES];
-            for c in out.iter_mut() {
-                *c = best[*c as usize];
-            }
+            class.clear();
+            class.extend(
+                act.iter()
+                    .map(|&a| t.iter().fold(0u64, |c, &t| c + u64::from(a >= t))),
+            );
+            out.extend(class.iter().map(|&c| best[c as usize]));
         }
     }
 }
@@ -680,10 +679,10 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         Some(coarse) => {
             let mut planes = Planes::new(w, h);
             let (mut pred, mut act) = (Vec::new(), Vec::new());
-            let (mut mk, mut sym) = (Vec::new(), Vec::new());
+            let (mut mk, mut sym, mut class) = (Vec::new(), Vec::new(), Vec::new());
             for ph in 0..4 {
                 predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
-                models_of(ph, &pred, &act, quant, &best, &mut mk);
+                models_of(ph, &pred, &act, quant, &best, &mut class, &mut mk);
                 decode_symbols(&mut ans, &mk, &mut sym).map_err(|_| broken("residuals"))?;
                 let plane = &mut planes.planes[ph];
                 // An escape's value is filled in below; what this writes there is overwritten.

@@ -429,12 +429,12 @@ impl Pyramid {
 /// `l` with its `min` and `max` set from its valid samples (the fill value
 /// where it has none).
 pub(crate) fn with_range(mut l: PyramidLevel) -> PyramidLevel {
+    const CHUNK: usize = 1 << 14;
     let (lo, hi) = l
         .data
-        .par_iter()
-        .zip(l.nodata.par_iter())
-        .filter(|(_, &nd)| !nd)
-        .map(|(&v, _)| (v, v))
+        .par_chunks(CHUNK)
+        .zip(l.nodata.par_chunks(CHUNK))
+        .map(|(d, n)| range_of(d, n))
         .reduce(
             || (f32::INFINITY, f32::NEG_INFINITY),
             |a, b| (a.0.min(b.0), a.1.max(b.1)),
@@ -450,9 +450,64 @@ pub(crate) fn with_range(mut l: PyramidLevel) -> PyramidLevel {
     l
 }
 
+/// The least and greatest of `data` where `nodata` is false, (+∞, −∞)
+/// when there are none. A run without no-data (the usual case) keeps eight
+/// independent running extremes, so the loop vectorises instead of being
+/// one serial chain of comparisons (that chain was an eighth of a pack's
+/// decode time).
+fn range_of(data: &[f32], nodata: &[bool]) -> (f32, f32) {
+    const LANES: usize = 8;
+    if nodata.iter().fold(false, |a, &b| a | b) {
+        return data
+            .iter()
+            .zip(nodata)
+            .filter(|(_, &nd)| !nd)
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (&v, _)| {
+                (lo.min(v), hi.max(v))
+            });
+    }
+    let mut lo = [f32::INFINITY; LANES];
+    let mut hi = [f32::NEG_INFINITY; LANES];
+    let chunks = data.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for d in chunks {
+        for k in 0..LANES {
+            lo[k] = lo[k].min(d[k]);
+            hi[k] = hi[k].max(d[k]);
+        }
+    }
+    for &v in rest {
+        lo[0] = lo[0].min(v);
+        hi[0] = hi[0].max(v);
+    }
+    (
+        lo.iter().fold(f32::INFINITY, |a, &b| a.min(b)),
+        hi.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The range skips no-data and NaN, holds for lengths that are not a
+    /// multiple of the lanes, and is (+∞, −∞) for nothing.
+    #[test]
+    fn range_of_skips_no_data_at_any_length() {
+        let data: Vec<f32> = (0..37).map(|i| i as f32 - 10.0).collect();
+        let mut nodata = vec![false; 37];
+        nodata[0] = true; // −10
+        nodata[36] = true; // 26, in the remainder
+        assert_eq!(range_of(&data, &nodata), (-9.0, 25.0));
+        let mut nan = data.clone();
+        nan[5] = f32::NAN;
+        assert_eq!(range_of(&nan, &nodata), (-9.0, 25.0));
+        assert_eq!(
+            range_of(&data[..3], &[true; 3]),
+            (f32::INFINITY, f32::NEG_INFINITY)
+        );
+        assert_eq!(range_of(&data[..20], &[false; 20]), (-10.0, 9.0));
+    }
 
     /// Prefetch hints clamp like copies: for any range, on or off the level,
     /// inverted or empty, the run fetched is exactly the hull of the samples
