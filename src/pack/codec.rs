@@ -139,7 +139,7 @@ impl Quant {
     }
 
     /// The sample residual `q` reconstructs against prediction `p`.
-    #[inline]
+    #[inline(always)]
     fn rec(&self, p: f64, q: i64) -> f32 {
         match *self {
             Quant::Step { max_error } => (p + q as f64 * (2.0 * max_error)) as f32,
@@ -565,6 +565,49 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     quant: Quant,
     rect: (usize, usize, usize, usize),
 ) -> Result<(Vec<f32>, Vec<bool>), String> {
+    let n = rect.2 * rect.3;
+    let (mut data, mut nodata) = (vec![0f32; n], vec![false; n]);
+    let out = TileOut {
+        data: &mut data,
+        nodata: &mut nodata,
+        stride: rect.2,
+        x0: 0,
+    };
+    decode_tile_into(bytes, coarse, quant, rect, &mut Scratch::default(), out)?;
+    Ok((data, nodata))
+}
+
+/// Buffers a thread reuses from tile to tile while it decodes, so a level
+/// is not a round of allocations (and of zeroed pages) a tile.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    planes: Planes,
+    pred: Vec<f64>,
+    act: Vec<f64>,
+    class: Vec<u64>,
+    models: Vec<u8>,
+    sym: Vec<u16>,
+    words: [Vec<u32>; STREAMS],
+}
+
+/// Where a decoded tile goes: rows `stride` apart, the tile's first
+/// sample at `x0` of the first row.
+pub(crate) struct TileOut<'a> {
+    pub data: &'a mut [f32],
+    pub nodata: &'a mut [bool],
+    pub stride: usize,
+    pub x0: usize,
+}
+
+/// [`decode_tile`] into `out`, with `scratch`'s buffers.
+pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
+    bytes: &[u8],
+    coarse: Option<&C>,
+    quant: Quant,
+    rect: (usize, usize, usize, usize),
+    scratch: &mut Scratch,
+    out: TileOut,
+) -> Result<(), String> {
     let (x0, y0, w, h) = rect;
     let n = w * h;
     if bytes.len() < HEADER {
@@ -615,39 +658,61 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         ));
     }
     let side = &rest[..side_len];
-    let words: Vec<u32> = rest[side_len..]
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect();
-    if first > words.len() {
+    let coded = &rest[side_len..];
+    let total = coded.len() / 4;
+    if first > total {
         return Err(format!(
-            "first stream of {first} words does not fit the tile's {}",
-            words.len()
+            "first stream of {first} words does not fit the tile's {total}"
         ));
     }
-    let stream = |w: &[u32]| {
-        DefaultAnsCoder::from_compressed(w.to_vec())
+    let Scratch {
+        planes,
+        pred,
+        act,
+        class,
+        models: mk,
+        sym,
+        words,
+    } = scratch;
+    let [wa, wb] = std::mem::take(words);
+    let stream = |mut buf: Vec<u32>, bytes: &[u8]| {
+        buf.clear();
+        buf.extend(
+            bytes
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])),
+        );
+        DefaultAnsCoder::from_compressed(buf)
             .map_err(|_| "a coded stream ends in a zero word".to_string())
     };
-    let mut ans = [stream(&words[..first])?, stream(&words[first..])?];
+    let mut ans = [
+        stream(wa, &coded[..4 * first])?,
+        stream(wb, &coded[4 * first..])?,
+    ];
     let broken = |what: &str| format!("coded stream broken in the {what}");
-    let nodata: Vec<bool> = match flags {
+    let TileOut {
+        data,
+        nodata,
+        stride,
+        x0: ox,
+    } = out;
+    let place = |i: usize| (i / w) * stride + ox + i % w;
+    match flags {
         MIXED => {
             let mm = mask_model(count, n);
-            let mut v = Vec::with_capacity(n);
-            for _ in 0..n {
-                v.push(
-                    ans[0]
-                        .decode_symbol(&mm)
-                        .map_err(|_| broken("no-data mask"))?
-                        == 1,
-                );
+            for i in 0..n {
+                nodata[place(i)] = ans[0]
+                    .decode_symbol(&mm)
+                    .map_err(|_| broken("no-data mask"))?
+                    == 1;
             }
-            v
         }
-        ALL_NODATA => vec![true; n],
-        _ => vec![false; n],
-    };
+        _ => {
+            for r in 0..h {
+                nodata[r * stride + ox..][..w].fill(flags == ALL_NODATA);
+            }
+        }
+    }
     let mut at = 0usize;
     // Sample `s` decoded against prediction `p`.
     let mut value = |s: usize, p: f64| -> Result<f32, String> {
@@ -663,31 +728,40 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
             quant.rec(p, unzigzag(v >> 1))
         })
     };
-    let rec = match coarse {
+    match coarse {
         None => {
             // One context: the symbols first, then the serial prediction.
-            let mut sym = Vec::new();
-            decode_symbols(&mut ans, &vec![best[0]; n], &mut sym)
-                .map_err(|_| broken("residuals"))?;
+            mk.clear();
+            mk.resize(n, best[0]);
+            decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
             let mut rec = vec![0f32; n];
             for (i, &s) in sym.iter().enumerate() {
                 let p = predict_top(&rec, w, i % w, i / w);
                 rec[i] = value(s as usize, p)?;
             }
-            rec
+            for r in 0..h {
+                data[r * stride + ox..][..w].copy_from_slice(&rec[r * w..][..w]);
+            }
         }
         Some(coarse) => {
-            let mut planes = Planes::new(w, h);
-            let (mut pred, mut act) = (Vec::new(), Vec::new());
-            let (mut mk, mut sym, mut class) = (Vec::new(), Vec::new(), Vec::new());
+            planes.reset(w, h);
             for ph in 0..4 {
-                predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
-                models_of(ph, &pred, &act, quant, &best, &mut class, &mut mk);
-                decode_symbols(&mut ans, &mk, &mut sym).map_err(|_| broken("residuals"))?;
+                predict::phase(ph, planes, coarse, (x0, y0), pred, act);
+                models_of(ph, pred, act, quant, &best, class, mk);
+                decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
+                let (sym, pred) = (&*sym, &*pred);
                 let plane = &mut planes.planes[ph];
                 // An escape's value is filled in below; what this writes there is overwritten.
-                for ((r, &s), &p) in plane.iter_mut().zip(&sym).zip(&pred) {
-                    *r = quant.rec(p, s as i64 - K);
+                let fill = |plane: &mut [f32], q: Quant| {
+                    for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
+                        *r = q.rec(p, s as i64 - K);
+                    }
+                };
+                // The bounded-error case on its own, so its one formula is
+                // inlined into a straight loop.
+                match quant {
+                    Quant::Step { .. } => fill(plane, quant),
+                    _ => fill(plane, quant),
                 }
                 // Escapes, in coding order, from the side stream.
                 for (i, &s) in sym.iter().enumerate() {
@@ -696,16 +770,18 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
                     }
                 }
             }
-            planes.interleave()
+            planes.interleave_into(data, stride, ox);
         }
-    };
+    }
     if at != side.len() {
         return Err(format!("{} side-stream bytes left over", side.len() - at));
     }
     if ans.iter().any(|a| !a.is_empty()) {
         return Err("coded words left over".into());
     }
-    Ok((rec, nodata))
+    // The emptied streams' buffers, for the next tile.
+    *words = ans.map(|a| a.into_compressed().unwrap_or_default());
+    Ok(())
 }
 
 pub(crate) fn level_of(
@@ -864,18 +940,29 @@ impl Packed {
         // A row of tiles at a time, each tile copied into the level as it
         // is decoded (so its buffers are reused, not held until the end).
         let band = self.tile * lv.width;
+        let top = l + 1 == self.levels.len();
         data.par_chunks_mut(band)
             .zip(nodata.par_chunks_mut(band))
             .enumerate()
             .try_for_each(|(ty, (data, nodata))| {
+                let mut scratch = Scratch::default();
                 for tx in 0..nx {
-                    let t = self.decode_tile(l, [tx, ty], c)?;
-                    let [x0, _, w, h] = t.rect;
-                    for row in 0..h {
-                        let at = row * lv.width + x0;
-                        data[at..at + w].copy_from_slice(&t.data[row * w..][..w]);
-                        nodata[at..at + w].copy_from_slice(&t.nodata[row * w..][..w]);
-                    }
+                    let rect = tile_rect(lv.width, lv.height, self.tile, tx, ty);
+                    let out = TileOut {
+                        data: &mut *data,
+                        nodata: &mut *nodata,
+                        stride: lv.width,
+                        x0: rect.0,
+                    };
+                    let bytes = &lv.tiles[ty * nx + tx];
+                    let coarse = (!top).then_some(c);
+                    decode_tile_into(bytes, coarse, lv.quant, rect, &mut scratch, out).map_err(
+                        |reason| TileError {
+                            level: l,
+                            tile: [tx, ty],
+                            reason,
+                        },
+                    )?;
                 }
                 Ok(())
             })?;

@@ -34,6 +34,7 @@ const SHARPEN: f64 = 0.25;
 
 /// A tile's samples split into its four phases (phase `px | py << 1`),
 /// each row-major: phase (px, py) holds tile samples (2i + px, 2j + py).
+#[derive(Default)]
 pub(crate) struct Planes {
     /// Tile samples across and down.
     pub w: usize,
@@ -44,16 +45,20 @@ pub(crate) struct Planes {
 
 impl Planes {
     pub fn new(w: usize, h: usize) -> Planes {
-        let mut p = Planes {
-            w,
-            h,
-            planes: Default::default(),
-        };
-        for ph in 0..4 {
-            let [c, r] = p.dims(ph);
-            p.planes[ph] = vec![0.0; c * r];
-        }
+        let mut p = Planes::default();
+        p.reset(w, h);
         p
+    }
+
+    /// Planes for a `w` × `h` tile, reusing these buffers. Every sample is
+    /// written before it is read: each phase is predicted only from the
+    /// phases before it.
+    pub fn reset(&mut self, w: usize, h: usize) {
+        (self.w, self.h) = (w, h);
+        for ph in 0..4 {
+            let [c, r] = self.dims(ph);
+            self.planes[ph].resize(c * r, 0.0);
+        }
     }
 
     /// Columns and rows of phase `ph`.
@@ -75,18 +80,24 @@ impl Planes {
     /// The tile's samples, row-major.
     pub fn interleave(&self) -> Vec<f32> {
         let mut out = vec![0f32; self.w * self.h];
+        self.interleave_into(&mut out, self.w, 0);
+        out
+    }
+
+    /// The tile's samples into `out`, rows `stride` apart, the first at
+    /// `x0`.
+    pub fn interleave_into(&self, out: &mut [f32], stride: usize, x0: usize) {
         for ph in 0..4 {
             let [cols, rows] = self.dims(ph);
             let (px, py) = (ph & 1, ph >> 1);
             for j in 0..rows {
-                let row = &mut out[(2 * j + py) * self.w..][..self.w];
+                let row = &mut out[(2 * j + py) * stride + x0..][..self.w];
                 let src = &self.planes[ph][j * cols..][..cols];
                 for (d, &s) in row[px..].iter_mut().step_by(2).zip(src) {
                     *d = s;
                 }
             }
         }
-        out
     }
 }
 

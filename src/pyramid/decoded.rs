@@ -380,9 +380,8 @@ impl Pyramid {
                     let (xa, xb) = ((i * RANGE_TILE).max(x0), ((i + 1) * RANGE_TILE).min(x1));
                     let b = &mut g.bounds[j * g.tiles_x + i];
                     for y in ya..yb {
-                        for &h in &dst.data[y * w + xa..y * w + xb] {
-                            *b = [b[0].min(h), b[1].max(h)];
-                        }
+                        let (lo, hi) = super::extremes(&dst.data[y * w + xa..y * w + xb]);
+                        *b = [b[0].min(lo), b[1].max(hi)];
                     }
                 }
             }

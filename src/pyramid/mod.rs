@@ -346,9 +346,8 @@ impl RangeGrid {
         let cols = i * RANGE_TILE..((i + 1) * RANGE_TILE).min(l.width);
         let mut b = [f32::INFINITY, f32::NEG_INFINITY];
         for y in rows {
-            for &v in &l.data[y * l.width + cols.start..y * l.width + cols.end] {
-                b = [b[0].min(v), b[1].max(v)];
-            }
+            let (lo, hi) = extremes(&l.data[y * l.width + cols.start..y * l.width + cols.end]);
+            b = [b[0].min(lo), b[1].max(hi)];
         }
         b
     }
@@ -451,12 +450,8 @@ pub(crate) fn with_range(mut l: PyramidLevel) -> PyramidLevel {
 }
 
 /// The least and greatest of `data` where `nodata` is false, (+∞, −∞)
-/// when there are none. A run without no-data (the usual case) keeps eight
-/// independent running extremes, so the loop vectorises instead of being
-/// one serial chain of comparisons (that chain was an eighth of a pack's
-/// decode time).
+/// when there are none.
 fn range_of(data: &[f32], nodata: &[bool]) -> (f32, f32) {
-    const LANES: usize = 8;
     if nodata.iter().fold(false, |a, &b| a | b) {
         return data
             .iter()
@@ -466,6 +461,15 @@ fn range_of(data: &[f32], nodata: &[bool]) -> (f32, f32) {
                 (lo.min(v), hi.max(v))
             });
     }
+    extremes(data)
+}
+
+/// The least and greatest of `data` ((+∞, −∞) for none; NaN skipped, as
+/// `f32::min` skips it), folded into `(lo, hi)`. Eight independent running
+/// extremes, so the loop vectorises instead of being one serial chain of
+/// comparisons (that chain was an eighth of a pack's decode time).
+pub(crate) fn extremes(data: &[f32]) -> (f32, f32) {
+    const LANES: usize = 8;
     let mut lo = [f32::INFINITY; LANES];
     let mut hi = [f32::NEG_INFINITY; LANES];
     let chunks = data.chunks_exact(LANES);
