@@ -5,6 +5,9 @@
 //! bytes; the pack holds every pyramid level, the anchors level 0 only),
 //! max and RMS error on level 0, and encode and decode M level-0 samples
 //! per second on one core (the pack's tile pool pinned to one thread).
+//! A second LERC row codes every level of the same pyramid, each to E, as
+//! the pack does: the like-for-like size, and the speed per level-0
+//! sample of decoding all of them.
 //!
 //! Run: `cargo bench --features anchors --bench pack_anchors` (LERC's
 //! bindings need libclang: `apt-get install libclang-dev`).
@@ -87,6 +90,31 @@ fn main() {
             rows.push(Row {
                 codec: "LERC".into(),
                 bytes: blob.len(),
+                max,
+                rms,
+                enc_s,
+                dec_s,
+            });
+            // LERC holding what the pack holds: every level, each to E.
+            let (enc_s, blobs) = best(3, || {
+                src.iter()
+                    .map(|l| lerc::encode(&l.data, None, l.width, l.height, 1, 1, 0, e).unwrap())
+                    .collect::<Vec<_>>()
+            });
+            let (dec_s, back) = best(3, || {
+                src.iter()
+                    .zip(&blobs)
+                    .map(|(l, b)| {
+                        lerc::decode::<f32>(b, l.width, l.height, 1, 1, 0)
+                            .unwrap()
+                            .0
+                    })
+                    .collect::<Vec<_>>()
+            });
+            let (max, rms) = errors(map.data(), &back[0]);
+            rows.push(Row {
+                codec: format!("LERC, every level ({})", src.len()),
+                bytes: blobs.iter().map(|b| b.len()).sum(),
                 max,
                 rms,
                 enc_s,
