@@ -650,18 +650,19 @@ fn a_flight_over_a_pack_decoded_as_it_goes_renders_the_map_itself() {
         evicted += z.tiles_evicted.unwrap();
     }
     assert!(evicted > 100, "the flight leaves tiles behind: {evicted}");
-    // Held still, the updates decode the ring of tiles around the windows
-    // four at a time (decoding ahead), then nothing more.
+    // Held still, the windows uncover nothing, so after the first update
+    // the ring of tiles around them is decoded ahead a tile an update (the
+    // least decoding ahead earns), then nothing more.
     let mut session = terraclip::render::Session::new(&packed, &mut Default::default()).unwrap();
     let cam = packed.camera();
     let opts = terraclip::render::RenderOptions::default();
     let mut ahead = vec![];
-    for _ in 0..40 {
+    for _ in 0..400 {
         let (img, s) = session.render(&cam, &opts, Default::default()).unwrap();
         assert!(img.rgba == want[0].0.rgba);
         let z = s.lazy.unwrap();
         if !ahead.is_empty() {
-            assert!(z.tiles_this_frame <= 4, "{z:?}");
+            assert!(z.tiles_this_frame <= 1, "{z:?}");
         }
         ahead.push(z.tiles_this_frame);
         if z.tiles_this_frame == 0 {
@@ -670,7 +671,7 @@ fn a_flight_over_a_pack_decoded_as_it_goes_renders_the_map_itself() {
     }
     assert_eq!(ahead.last(), Some(&0), "{ahead:?}");
     assert!(
-        ahead.len() > 2,
+        ahead.len() > 10,
         "the ring is decoded over frames: {ahead:?}"
     );
 }

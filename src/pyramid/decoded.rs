@@ -65,6 +65,11 @@ pub(super) struct Decoded {
     resident: Vec<Vec<[usize; 2]>>,
     /// Samples one update may decode.
     budget: u64,
+    /// Samples the decoding ahead may still spend, earned as the windows
+    /// move ([`AHEAD_RATE`]).
+    ahead_credit: u64,
+    /// The windows of the last update, to measure how far they moved.
+    last: Vec<[i64; 4]>,
     /// The first tile that failed to decode.
     error: Option<String>,
 }
@@ -79,6 +84,16 @@ const AHEAD: usize = 4;
 /// How many tiles deep the ring decoded ahead of each window is, which
 /// eviction keeps.
 const RING: i64 = 1;
+/// Samples decoded ahead for each sample the windows newly cover. A window
+/// n wide moving one texel along an axis uncovers n texels, and its ring's
+/// leading edge then needs (n + 2 · tile) / tile new tiles every tile
+/// texels, about 2.5 n samples a texel at n = 255 with 128² tiles; 4 keeps
+/// ahead with room to spare. Decoding ahead at the rate the windows move
+/// (at least a tile an update, at most [`AHEAD`]), instead of [`AHEAD`]
+/// tiles whenever any are missing, keeps a slow viewer's frames from
+/// decoding four tiles at once (1.9 % of a frame at one texel a frame,
+/// against 0.25 % on average; docs/pack.md).
+const AHEAD_RATE: u64 = 4;
 
 /// What one call of [`Pyramid::build_around`] did.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -147,6 +162,8 @@ impl Pyramid {
                 resident: vec![Vec::new(); tiles.len()],
                 tiles,
                 budget,
+                ahead_credit: 0,
+                last: Vec::new(),
                 error: None,
             })),
             progress: Some(super::LazyStats {
@@ -243,15 +260,43 @@ impl Pyramid {
     /// same ring is what eviction keeps.
     fn decode_ahead(&mut self, windows: &[[i64; 4]], first: usize, budget: &mut u64) {
         let top = self.levels.len() - 1;
-        let g = RING * self.decoded.as_ref().map_or(1, |d| d.src.tile()) as i64;
-        let mut left = AHEAD;
+        let d = self.decoded.as_mut().expect("decoded pyramid");
+        let side = d.src.tile() as u64;
+        let g = RING * side as i64;
+        // What the windows newly cover earns decoding ahead, at most
+        // AHEAD tiles' worth (so a jump does not bank a burst).
+        let moved = uncovered(&d.last, windows, first);
+        d.last = vec![[0, 0, -1, -1]; first];
+        d.last.extend_from_slice(windows);
+        // At least a tile an update, so a still viewer's ring fills too.
+        let (tile, cap) = (side * side, AHEAD as u64 * side * side);
+        let earned = AHEAD_RATE.saturating_mul(moved).max(tile);
+        d.ahead_credit = d.ahead_credit.saturating_add(earned).min(cap);
+        let mut left = (d.ahead_credit / tile) as usize;
+        let mut any = false;
         for (i, &[x0, y0, x1, y1]) in windows.iter().enumerate() {
             if left == 0 {
                 break;
             }
             let k = first + i;
             let plan = self.plan(k, [x0 - g, y0 - g, x1 + g, y1 + g], top);
-            left -= self.decode_plan(k, &plan, budget, false, left);
+            let before = *budget;
+            let taken = self.decode_plan(k, &plan, budget, false, left);
+            left -= taken;
+            let spent = if taken > 0 {
+                (taken as u64 * tile).max(before - *budget)
+            } else {
+                0
+            };
+            any |= taken > 0;
+            let d = self.decoded.as_mut().expect("decoded pyramid");
+            d.ahead_credit = d.ahead_credit.saturating_sub(spent);
+        }
+        // With the rings whole, credit is not banked: it would come out as
+        // a burst of tiles when they next need some.
+        if !any && left > 0 {
+            let d = self.decoded.as_mut().expect("decoded pyramid");
+            d.ahead_credit = 0;
         }
     }
 
@@ -433,6 +478,24 @@ impl Pyramid {
     }
 }
 
+/// Texels of `windows` (level `first + i`'s is `windows[i]`; inclusive
+/// rectangles) outside the same levels' windows in `last`: what the
+/// windows newly cover. A level with no last window counts whole.
+fn uncovered(last: &[[i64; 4]], windows: &[[i64; 4]], first: usize) -> u64 {
+    let area = |[x0, y0, x1, y1]: [i64; 4]| ((x1 - x0 + 1).max(0) * (y1 - y0 + 1).max(0)) as u64;
+    windows
+        .iter()
+        .enumerate()
+        .map(|(i, &w)| match last.get(first + i) {
+            Some(&[a0, b0, a1, b1]) if a1 >= a0 => {
+                let both = [w[0].max(a0), w[1].max(b0), w[2].min(a1), w[3].min(b1)];
+                area(w) - area(both)
+            }
+            _ => area(w),
+        })
+        .sum()
+}
+
 /// Gives back the pages of the runs of missing tiles that hold the tiles
 /// `gone` (just evicted), row by row: a page is shared by the tiles beside
 /// each other in a row, so only a run of missing ones frees any.
@@ -456,5 +519,25 @@ fn release_runs(lv: &mut PyramidLevel, tiles: &Tiles, gone: &[[usize; 2]]) {
             huge::release(&mut lv.data[y * w + x0..y * w + x1]);
             huge::release(&mut lv.nodata[y * w + x0..y * w + x1]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::uncovered;
+
+    /// What a window newly covers: none when it stays, a strip when it
+    /// moves, the whole window when the level had none (or was not drawn).
+    #[test]
+    fn uncovered_counts_what_the_windows_newly_cover() {
+        let w = [10, 20, 19, 29]; // 10 × 10, inclusive
+        assert_eq!(uncovered(&[w], &[w], 0), 0);
+        assert_eq!(uncovered(&[w], &[[11, 20, 20, 29]], 0), 10);
+        assert_eq!(uncovered(&[w], &[[12, 21, 21, 30]], 0), 100 - 8 * 9);
+        assert_eq!(uncovered(&[w], &[[40, 20, 49, 29]], 0), 100);
+        assert_eq!(uncovered(&[], &[w], 0), 100);
+        assert_eq!(uncovered(&[[0, 0, -1, -1]], &[w], 0), 100);
+        // Level 1's window against level 1's last one.
+        assert_eq!(uncovered(&[[0, 0, -1, -1], w], &[w], 1), 0);
     }
 }
