@@ -31,6 +31,7 @@ pub mod render;
 pub mod scene;
 pub(crate) mod shade;
 pub mod studies;
+pub mod synthesis;
 pub mod terrain;
 
 pub use error::{Error, Result};

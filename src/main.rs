@@ -59,6 +59,10 @@ enum Cmd {
     Fly(cli::fly::Args),
     /// Draw a top-down map of the clipmap levels and regions.
     Diagram(cli::diagram::Args),
+    /// Decimate a map 2× or 4× by its pyramid, synthesise it back down
+    /// (subdivision plus noise) and compare its statistics with the real
+    /// map's: variogram slope, slope distribution (KS), RMSE.
+    Synthesis(cli::synthesis::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -78,6 +82,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Cracks(a)) => cli::cracks::run(&a),
         Some(Cmd::Tradeoff(a)) => cli::tradeoff::run(&a),
         Some(Cmd::Fly(a)) => cli::fly::run(&a),
+        Some(Cmd::Synthesis(a)) => cli::synthesis::run(&a),
         Some(Cmd::Diagram(a)) => cli::diagram::run(&a),
         // The main job: render the embedded default scene.
         None => cli::render::run(&cli::render::Args::main_job()),

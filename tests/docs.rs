@@ -314,6 +314,10 @@ fn every_json_key_is_in_docs_cli_md() {
             ]],
         ),
         (
+            "synthesis",
+            vec![vec!["synthesis", jacksboro, "--factor", "4"]],
+        ),
+        (
             "diagram",
             vec![vec!["diagram", "--size", "64", "-o", &diagram]],
         ),
@@ -369,10 +373,11 @@ fn every_json_key_is_in_docs_cli_md() {
 #[test]
 fn the_page_lists_the_keys_of_every_command() {
     let docs = documented();
-    assert_eq!(docs.len(), 13, "{:?}", docs.keys().collect::<Vec<_>>());
+    assert_eq!(docs.len(), 14, "{:?}", docs.keys().collect::<Vec<_>>());
     assert!(docs["render"].contains("non_finite.clip"));
     assert!(docs["check-gpu"].contains("scenes[].unmatched_example.a_rgba"));
     assert!(docs["scaling"].contains("update.walks[].overheads"));
+    assert!(docs["synthesis"].contains("subdivided.slope_ks"));
     let total: usize = docs.values().map(BTreeSet::len).sum();
     assert!(total > 200, "{total} keys");
     let mut k = Keys::default();

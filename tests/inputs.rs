@@ -659,3 +659,47 @@ fn pack_writes_a_pack_info_reads_and_bad_ones_are_clean_errors() {
         assert!(err.contains(says) && !err.contains("panicked"), "{err}");
     }
 }
+
+/// `synthesis` runs on jacksboro and writes its picture; a factor other
+/// than 2 or 4, a negative roughness, a window off the map and a map too
+/// small to decimate are clean errors that say why.
+#[test]
+fn synthesis_measures_and_bad_options_are_clean_errors() {
+    let out = tmp("synthesis.png");
+    let o = out.to_str().unwrap();
+    let (code, json, err) = cli(&["synthesis", JACKSBORO, "--factor", "2", "-o", o, "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["factor"], 2);
+    assert_eq!(v["amplitudes"].as_array().unwrap().len(), 1);
+    let png = image::open(&out).unwrap();
+    // Three panels of the compared region, 4 pixels apart.
+    assert_eq!(png.width() as u64, 3 * v["width"].as_u64().unwrap() + 8);
+    fails_cleanly(
+        &["synthesis", JACKSBORO, "--factor", "3"],
+        "factor",
+        "must be 2 or 4",
+    );
+    fails_cleanly(
+        &["synthesis", JACKSBORO, "--roughness", "-0.5"],
+        "roughness",
+        "within 0..=2",
+    );
+    fails_cleanly(
+        &["synthesis", JACKSBORO, "--window", "400,0,10,10"],
+        "jacksboro",
+        "does not fit",
+    );
+    fails_cleanly(
+        &[
+            "synthesis",
+            JACKSBORO,
+            "--window",
+            "0,0,6,6",
+            "--factor",
+            "4",
+        ],
+        "synthesis",
+        "too small",
+    );
+}

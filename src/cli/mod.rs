@@ -15,6 +15,7 @@ pub mod info;
 pub mod pack;
 pub mod render;
 pub mod scaling;
+pub mod synthesis;
 pub mod tradeoff;
 pub mod unpack;
 

@@ -27,7 +27,7 @@ pub struct Args {
     pub json: bool,
 }
 
-fn parse_window(s: &str) -> Result<[usize; 4], String> {
+pub(crate) fn parse_window(s: &str) -> Result<[usize; 4], String> {
     let v: Vec<usize> = s
         .split(',')
         .map(|p| p.trim().parse::<usize>().map_err(|e| format!("'{p}': {e}")))

@@ -790,14 +790,7 @@ pub(crate) fn level_of(
     data: Vec<f32>,
     nodata: Vec<bool>,
 ) -> PyramidLevel {
-    crate::pyramid::with_range(PyramidLevel {
-        width,
-        height,
-        data,
-        nodata,
-        min: 0.0,
-        max: 0.0,
-    })
+    PyramidLevel::from_parts(width, height, data, nodata)
 }
 
 /// The quantisation of a level: bounded error when `max_error` > 0;

@@ -173,6 +173,12 @@ impl PyramidLevel {
     fn of_heightmap(map: Heightmap) -> Self {
         let (width, height) = (map.width(), map.height());
         let (data, nodata) = map.into_parts();
+        Self::from_parts(width, height, data, nodata)
+    }
+
+    /// A `width` × `height` level of `data` and `nodata`, its height range
+    /// taken from them.
+    pub fn from_parts(width: usize, height: usize, data: Vec<f32>, nodata: Vec<bool>) -> Self {
         with_range(PyramidLevel {
             width,
             height,

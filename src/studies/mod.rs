@@ -9,5 +9,6 @@ pub mod fly;
 pub mod metrics;
 pub(crate) mod report;
 pub mod scaling;
+pub mod synthesis;
 pub mod tradeoff;
 pub mod views;

@@ -1,0 +1,139 @@
+//! `terraclip synthesis`: how plausible synthesised detail is, on a real
+//! map decimated by its own pyramid and synthesised back down.
+
+use std::path::PathBuf;
+use terraclip::error::write_atomic;
+use terraclip::pyramid::Filter;
+use terraclip::studies::synthesis::{self, Options};
+use terraclip::terrain::Heightmap;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// A heightmap `info` reads.
+    pub map: PathBuf,
+    /// Decimate 2× or 4× before synthesising back down.
+    #[arg(long, default_value_t = 2)]
+    pub factor: usize,
+    /// A window X,Y,W,H of the map's samples (the whole map if absent).
+    #[arg(long, value_parser = super::unpack::parse_window)]
+    pub window: Option<[usize; 4]>,
+    /// Roughness H: each synthesised level's noise 2^−H of the one above
+    /// (measured from the decimated map if absent).
+    #[arg(long, allow_hyphen_values = true)]
+    pub roughness: Option<f64>,
+    /// The noise table's seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// The pyramid's filter (the decimation).
+    #[arg(long, default_value = "sinc-blackman", value_parser = Filter::parse)]
+    pub filter: Filter,
+    /// A PNG of hillshades side by side: the real map, the decimated map
+    /// and the synthesised one.
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `map`'s window `[x, y, w, h]`, no-data kept.
+fn window(
+    map: &Heightmap,
+    [x, y, w, h]: [usize; 4],
+    path: &std::path::Path,
+) -> anyhow::Result<Heightmap> {
+    if x + w > map.width() || y + h > map.height() {
+        anyhow::bail!(
+            "{}: window {x},{y},{w},{h} does not fit the {}×{} map",
+            path.display(),
+            map.width(),
+            map.height()
+        );
+    }
+    let (data, nd) = (map.data(), map.nodata_mask());
+    let values = (0..w * h)
+        .map(|i| {
+            let j = (y + i / w) * map.width() + x + i % w;
+            if nd[j] {
+                f32::NAN
+            } else {
+                data[j]
+            }
+        })
+        .collect();
+    Heightmap::from_values(w, h, values, None, map.cell_size, &map.format)
+        .map_err(|e| anyhow::anyhow!("{}: the window: {e}", path.display()))
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    let mut map = Heightmap::load(&a.map)?;
+    if let Some(w) = a.window {
+        map = window(&map, w, &a.map)?;
+    }
+    let opts = Options {
+        factor: a.factor,
+        roughness: a.roughness,
+        seed: a.seed,
+        filter: a.filter,
+    };
+    let (r, s) = synthesis::run(&map, &opts)?;
+    if let Some(out) = &a.out {
+        // The real map's 95th-percentile slope shades at 45°, so maps of
+        // any relief and cell size show their forms.
+        let e = 1.0 / synthesis::slope_percentile(&s.real, 0.95).max(1e-9);
+        let panels = [
+            synthesis::hillshade(&s.real, e, 1),
+            synthesis::hillshade(&s.decimated, e / a.factor as f64, a.factor),
+            synthesis::hillshade(&s.synthesised, e, 1),
+        ];
+        let gap = 4;
+        let (pw, ph) = (s.real.width, s.real.height);
+        let width = 3 * pw + 2 * gap;
+        let mut grey = vec![255u8; width * ph];
+        for (k, (w, _, px)) in panels.iter().enumerate() {
+            for y in 0..ph {
+                let n = pw.min(*w);
+                grey[y * width + k * (pw + gap)..][..n].copy_from_slice(&px[y * w..][..n]);
+            }
+        }
+        let mut png = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut png),
+            &grey,
+            width as u32,
+            ph as u32,
+            image::ExtendedColorType::L8,
+        )?;
+        write_atomic(out, &png)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&r)?);
+        return Ok(());
+    }
+    println!(
+        "{} × {} samples, decimated {}×, roughness {:.3}{}, noise amplitudes {:?}",
+        r.width,
+        r.height,
+        r.factor,
+        r.roughness,
+        if r.roughness_measured {
+            " (measured)"
+        } else {
+            ""
+        },
+        r.amplitudes
+    );
+    println!("real variogram slope {:.3}", r.real_variogram_slope);
+    for (name, s) in [
+        ("synthesised", &r.synthesised),
+        ("subdivided", &r.subdivided),
+    ] {
+        println!(
+            "{name:<12} variogram slope {:.3} ({:+.1} %), slope KS {:.3}, RMSE {:.3}",
+            s.variogram_slope,
+            s.variogram_slope_error * 100.0,
+            s.slope_ks,
+            s.rmse
+        );
+    }
+    Ok(())
+}

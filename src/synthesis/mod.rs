@@ -1,0 +1,219 @@
+//! Detail finer than the data (LH04 §5.3; GPU Gems 2 ch. 2): a level
+//! finer than the map is the interpolatory subdivision of the level above
+//! it plus Gaussian noise read from a small wrapped table.
+//!
+//! This is the synthesis stage's arithmetic: the noise table, the
+//! subdivision, and the amplitude each finer level gets from the map's own
+//! measured detail. Every operation is f64 over f32 samples in a fixed
+//! order with no fused operations, and the table comes from integer
+//! arithmetic only (no `exp`, `ln` or `cos`, whose last bits differ between
+//! C libraries), so a synthesised level is the same bits on any machine and
+//! any thread count.
+
+use crate::pyramid::PyramidLevel;
+use rayon::prelude::*;
+
+/// Side of the wrapped noise table.
+pub const TABLE: usize = 64;
+
+/// How much a level's table coordinates are stretched: slightly more than
+/// one, so that the texel a coordinate lands on slips by one every 97
+/// texels and the table's period of 64 does not repeat on the terrain (GPU
+/// Gems 2 scales its noise coordinates for the same reason).
+const STRETCH: f64 = 1.0 + 1.0 / 97.0;
+
+/// A wrapped table of standard Gaussian values made from a seed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoiseTable {
+    values: Vec<f64>,
+}
+
+/// SplitMix64: the next state and its output.
+fn splitmix(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+impl NoiseTable {
+    /// The table for `seed`: each value the sum of twelve uniforms on
+    /// [0, 1) less 6 (the Irwin–Hall approximation of a standard Gaussian,
+    /// mean 0 and variance 1, tails cut at ±6), in exact-order f64 sums.
+    pub fn new(seed: u64) -> NoiseTable {
+        let mut state = seed;
+        let values = (0..TABLE * TABLE)
+            .map(|_| {
+                let mut s = 0.0f64;
+                for _ in 0..12 {
+                    s += (splitmix(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
+                }
+                s - 6.0
+            })
+            .collect();
+        NoiseTable { values }
+    }
+
+    /// The noise at texel (x, y) of the `k`-th synthesised level (k ≥ 1):
+    /// the table read at stretched coordinates, offset per level so that
+    /// the levels' noise is not the same pattern at different scales.
+    pub fn at(&self, k: usize, x: i64, y: i64) -> f64 {
+        let off = 17 * k as i64;
+        let u = ((x as f64 * STRETCH).floor() as i64 + off).rem_euclid(TABLE as i64) as usize;
+        let v = ((y as f64 * STRETCH).floor() as i64 + 3 * off).rem_euclid(TABLE as i64) as usize;
+        self.values[v * TABLE + u]
+    }
+
+    /// Every value, row-major.
+    pub fn values(&self) -> &[f64] {
+        &self.values
+    }
+}
+
+/// The four-point interpolation (−1/16, 9/16, 9/16, −1/16) at the midpoint
+/// of `v1` and `v2`: LH04's subdivision, the pack's predictor.
+#[inline]
+fn four_point(v0: f64, v1: f64, v2: f64, v3: f64) -> f64 {
+    (-v0 + 9.0 * v1 + 9.0 * v2 - v3) / 16.0
+}
+
+/// The interpolatory subdivision of `coarse`: a level of 2w − 1 × 2h − 1
+/// samples whose even samples are the coarse ones, the samples between two
+/// of them along a row or a column their four-point interpolation, and the
+/// centres the mean of the row and column interpolations there (indices
+/// clamped at the edges). A sample is no-data where any coarse sample its
+/// stencil reads is. Returns the heights as f64 and the no-data flags.
+pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
+    let (cw, ch) = (coarse.width, coarse.height);
+    let (w, h) = (2 * cw - 1, 2 * ch - 1);
+    let c = |i: i64, j: i64| {
+        let (i, j) = (
+            i.clamp(0, cw as i64 - 1) as usize,
+            j.clamp(0, ch as i64 - 1) as usize,
+        );
+        (coarse.data[j * cw + i] as f64, coarse.nodata[j * cw + i])
+    };
+    // The four-point stencil along a row (dx = 1) or a column through
+    // coarse (i, j) and the next one.
+    let line = |i: i64, j: i64, dx: i64, dy: i64| {
+        let s = [-1, 0, 1, 2].map(|t| c(i + t * dx, j + t * dy));
+        (
+            four_point(s[0].0, s[1].0, s[2].0, s[3].0),
+            s.iter().any(|v| v.1),
+        )
+    };
+    let mut data = vec![0f64; w * h];
+    let mut nodata = vec![false; w * h];
+    data.par_chunks_mut(w)
+        .zip(nodata.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (row, nd))| {
+            let j = (y / 2) as i64;
+            for x in 0..w {
+                let i = (x / 2) as i64;
+                let (v, n) = match (x % 2, y % 2) {
+                    (0, 0) => c(i, j),
+                    (1, 0) => line(i, j, 1, 0),
+                    (0, _) => line(i, j, 0, 1),
+                    _ => {
+                        // The row interpolation through the two column
+                        // midpoints' rows, and the column one through the
+                        // two row midpoints' columns, each over the coarse
+                        // samples' midpoints.
+                        let row_mid = |jj: i64| line(i, jj, 1, 0);
+                        let col_mid = |ii: i64| line(ii, j, 0, 1);
+                        let r = [-1, 0, 1, 2].map(|t| col_mid(i + t));
+                        let q = [-1, 0, 1, 2].map(|t| row_mid(j + t));
+                        let a = four_point(r[0].0, r[1].0, r[2].0, r[3].0);
+                        let b = four_point(q[0].0, q[1].0, q[2].0, q[3].0);
+                        let n = r.iter().chain(&q).any(|v| v.1);
+                        ((a + b) / 2.0, n)
+                    }
+                };
+                row[x] = v;
+                nd[x] = n;
+            }
+        });
+    (data, nodata)
+}
+
+/// RMS of `fine` less the subdivision of `coarse` (its next coarser level)
+/// over the samples where neither is no-data: how much detail the map adds
+/// at its finest step, the amplitude its first synthesised level continues.
+/// `None` when no sample counts.
+pub fn detail_rms(fine: &PyramidLevel, coarse: &PyramidLevel) -> Option<f64> {
+    let (up, nd) = subdivide(coarse);
+    let uw = 2 * coarse.width - 1;
+    let (mut sum, mut count) = (0.0f64, 0u64);
+    for y in 0..fine.height.min(2 * coarse.height - 1) {
+        for x in 0..fine.width.min(uw) {
+            let (f, u) = (y * fine.width + x, y * uw + x);
+            if fine.nodata[f] || nd[u] {
+                continue;
+            }
+            let d = fine.data[f] as f64 - up[u];
+            sum += d * d;
+            count += 1;
+        }
+    }
+    (count > 0).then(|| (sum / count as f64).sqrt())
+}
+
+/// The amplitude of the `k`-th synthesised level (k ≥ 1) from the map's
+/// finest detail `rms` and roughness `h`: rms · 2^(−h k), so each level
+/// finer is rougher or smoother by the same factor as fractal terrain.
+pub fn amplitude(rms: f64, h: f64, k: usize) -> f64 {
+    let mut a = rms;
+    let f = pow2(-h);
+    for _ in 0..k {
+        a *= f;
+    }
+    a
+}
+
+/// 2^x for the roughness factor, from integer powers and square roots (both
+/// correctly rounded) so every machine agrees: x is taken to 1/1024.
+fn pow2(x: f64) -> f64 {
+    let q = (x * 1024.0).round() as i64;
+    let (whole, frac) = (q.div_euclid(1024), q.rem_euclid(1024));
+    let mut v = 1.0f64;
+    let mut root = 2.0f64;
+    // frac / 1024 in binary: 2^(1/2), 2^(1/4), ..., 2^(1/1024).
+    for bit in (0..10).rev() {
+        root = root.sqrt();
+        if frac >> bit & 1 == 1 {
+            v *= root;
+        }
+    }
+    let mut p = 1.0f64;
+    for _ in 0..whole.unsigned_abs() {
+        p *= 2.0;
+    }
+    if whole < 0 {
+        v / p
+    } else {
+        v * p
+    }
+}
+
+/// The `k`-th synthesised level (k ≥ 1) from the level above it: its
+/// subdivision plus `amp` times the table's noise, as f32; no-data where the
+/// subdivision is.
+pub fn synthesize(coarse: &PyramidLevel, table: &NoiseTable, k: usize, amp: f64) -> PyramidLevel {
+    let (up, nodata) = subdivide(coarse);
+    let w = 2 * coarse.width - 1;
+    let mut data = vec![0f32; up.len()];
+    data.par_chunks_mut(w)
+        .zip(up.par_chunks(w))
+        .enumerate()
+        .for_each(|(y, (row, u))| {
+            for (x, (d, &v)) in row.iter_mut().zip(u).enumerate() {
+                *d = (v + amp * table.at(k, x as i64, y as i64)) as f32;
+            }
+        });
+    PyramidLevel::from_parts(w, 2 * coarse.height - 1, data, nodata)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,132 @@
+use super::*;
+
+fn level(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> PyramidLevel {
+    let data = (0..w * h).map(|i| f(i % w, i / w)).collect();
+    PyramidLevel::from_parts(w, h, data, vec![false; w * h])
+}
+
+/// The table is the seed's alone, and its values have the moments of a
+/// standard Gaussian: over 4096 values the sample mean's standard error is
+/// 1/64 and the variance's √(2/4096) ≈ 0.022, so ±0.08 and ±0.11 are five
+/// standard errors.
+#[test]
+fn the_noise_table_is_the_seeds_and_gaussian() {
+    let t = NoiseTable::new(7);
+    assert_eq!(t, NoiseTable::new(7));
+    assert_ne!(t, NoiseTable::new(8));
+    let v = t.values();
+    assert_eq!(v.len(), TABLE * TABLE);
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / n;
+    assert!(mean.abs() < 0.08, "mean {mean}");
+    assert!((var - 1.0).abs() < 0.11, "variance {var}");
+    assert!(v.iter().all(|x| x.abs() <= 6.0));
+    // Stretched coordinates: 64 texels apart is not the same value along a
+    // whole row (the table's period does not show).
+    let same = (0..1000)
+        .filter(|&x| t.at(1, x, 5) == t.at(1, x + 64, 5))
+        .count();
+    assert!(same < 1000, "{same}");
+}
+
+/// The coarse samples come through bit for bit, and the four-point scheme
+/// reproduces a plane exactly (integer heights: every step is exact).
+#[test]
+fn subdivision_keeps_the_coarse_samples_and_reproduces_a_plane() {
+    let c = level(9, 7, |x, y| (3 * x + 5 * y) as f32);
+    let (up, nd) = subdivide(&c);
+    let w = 17;
+    assert_eq!(up.len(), w * 13);
+    assert!(nd.iter().all(|&b| !b));
+    for y in 0..13 {
+        for x in 0..w {
+            // Interior only: clamping bends the plane at the edges.
+            if (2..w - 3).contains(&x) && (2..13 - 3).contains(&y) {
+                let want = 1.5 * x as f64 + 2.5 * y as f64;
+                assert_eq!(up[y * w + x], want, "({x}, {y})");
+            }
+            if x % 2 == 0 && y % 2 == 0 {
+                assert_eq!(up[y * w + x], c.data[(y / 2) * 9 + x / 2] as f64);
+            }
+        }
+    }
+}
+
+/// No-data spreads to every sample whose stencil reads it, and no further.
+#[test]
+fn no_data_stays_no_data() {
+    let mut c = level(9, 9, |x, y| (x * y) as f32);
+    c.nodata[4 * 9 + 4] = true;
+    let (_, nd) = subdivide(&c);
+    let w = 17;
+    assert!(nd[8 * w + 8], "the coarse sample itself");
+    assert!(nd[8 * w + 9] && nd[9 * w + 9], "its neighbours");
+    // Fine x = 11 lies between coarse 5 and 6, whose stencil reaches
+    // coarse 4; x = 13 (between 6 and 7) reads 5 to 8 only.
+    assert!(nd[8 * w + 11] && nd[11 * w + 8], "an outer tap");
+    assert!(!nd[8 * w + 13] && !nd[13 * w + 8], "out of reach");
+    assert!(!nd[0] && !nd[16 * w + 16], "far corners");
+    let s = synthesize(&c, &NoiseTable::new(1), 1, 1.0);
+    assert_eq!(s.nodata, nd);
+}
+
+/// A synthesised level's detail over the subdivision is the amplitude asked
+/// for times the table's RMS (the ~12,500 texels draw the table's 4,096
+/// values about three times each, nearly evenly, so their RMS is the
+/// table's to about 1 %; 3 % is the bound), and the level is the same bits
+/// on one thread and on two.
+#[test]
+fn synthesis_adds_noise_of_the_asked_amplitude_on_any_thread_count() {
+    let c = level(65, 49, |x, y| ((x * 7 + y * 3) % 11) as f32 * 10.0);
+    let t = NoiseTable::new(20041);
+    let amp = amplitude(8.0, 1.0, 2);
+    assert_eq!(amp, 2.0);
+    let table_rms = (t.values().iter().map(|v| v * v).sum::<f64>() / (TABLE * TABLE) as f64).sqrt();
+    let s = synthesize(&c, &t, 1, amp);
+    let (up, _) = subdivide(&c);
+    let n = up.len() as f64;
+    let rms = (s
+        .data
+        .iter()
+        .zip(&up)
+        .map(|(&a, &b)| (a as f64 - b) * (a as f64 - b))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    assert!((rms / (amp * table_rms) - 1.0).abs() < 0.03, "rms {rms}");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let single = one.install(|| synthesize(&c, &t, 1, amp));
+    assert!(single
+        .data
+        .iter()
+        .zip(&s.data)
+        .all(|(a, b)| a.to_bits() == b.to_bits()));
+}
+
+/// The map's own detail: zero for a map that is its coarser level's
+/// subdivision, and the noise's amplitude for one synthesised from it.
+#[test]
+fn detail_is_measured_against_the_subdivision() {
+    let c = level(33, 33, |x, y| (x * x + y) as f32);
+    let (up, _) = subdivide(&c);
+    let fine = level(65, 65, |x, y| up[y * 65 + x] as f32);
+    assert_eq!(detail_rms(&fine, &c), Some(0.0));
+    let s = synthesize(&c, &NoiseTable::new(3), 1, 2.0);
+    let d = detail_rms(&s, &c).unwrap();
+    assert!((d / 2.0 - 1.0).abs() < 0.05, "{d}");
+}
+
+/// 2^x from square roots and doublings: exact at whole and half powers,
+/// and close to the real value between them.
+#[test]
+fn pow2_is_exact_where_it_can_be() {
+    assert_eq!(pow2(0.0), 1.0);
+    assert_eq!(pow2(3.0), 8.0);
+    assert_eq!(pow2(-2.0), 0.25);
+    assert_eq!(pow2(0.5), std::f64::consts::SQRT_2);
+    assert!((pow2(-0.3) - 0.812252396356).abs() < 1e-3);
+}
