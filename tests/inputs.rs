@@ -675,6 +675,12 @@ fn synthesis_measures_and_bad_options_are_clean_errors() {
     let png = image::open(&out).unwrap();
     // Three panels of the compared region, 4 pixels apart.
     assert_eq!(png.width() as u64, 3 * v["width"].as_u64().unwrap() + 8);
+    let (code, json, err) = cli(&["synthesis", JACKSBORO, "--local", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(
+        serde_json::from_str::<serde_json::Value>(&json).unwrap()["local"],
+        true
+    );
     fails_cleanly(
         &["synthesis", JACKSBORO, "--factor", "3"],
         "factor",

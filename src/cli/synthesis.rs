@@ -27,6 +27,10 @@ pub struct Args {
     /// The pyramid's filter (the decimation).
     #[arg(long, default_value = "sinc-blackman", value_parser = Filter::parse)]
     pub filter: Filter,
+    /// Scale the noise by the map's local detail instead of one amplitude
+    /// everywhere (LH04's).
+    #[arg(long)]
+    pub local: bool,
     /// A PNG of hillshades side by side: the real map, the decimated map
     /// and the synthesised one.
     #[arg(short, long)]
@@ -74,6 +78,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         roughness: a.roughness,
         seed: a.seed,
         filter: a.filter,
+        local: a.local,
     };
     let (r, s) = synthesis::run(&map, &opts)?;
     if let Some(out) = &a.out {

@@ -8,7 +8,9 @@
 
 use crate::error::{Error, Result};
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
-use crate::synthesis::{amplitude, detail_rms, synthesize, NoiseTable};
+use crate::synthesis::{
+    amplitude, detail_gain, detail_rms, synthesize, synthesize_with_gain, NoiseTable,
+};
 use crate::terrain::Heightmap;
 use serde::Serialize;
 
@@ -24,7 +26,13 @@ pub struct Options {
     pub seed: u64,
     /// The pyramid's filter (the decimation).
     pub filter: Filter,
+    /// Scale the noise by the decimated map's local detail
+    /// ([`detail_gain`]) instead of one amplitude everywhere.
+    pub local: bool,
 }
+
+/// Samples around each one that its local detail is measured over.
+const LOCAL_RADIUS: usize = 2;
 
 /// One surface against the real map.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -53,6 +61,8 @@ pub struct Report {
     pub roughness: f64,
     /// Whether it was measured from the decimated map.
     pub roughness_measured: bool,
+    /// Whether the noise followed the map's local detail.
+    pub local: bool,
     /// The noise amplitude of each synthesised level, coarse to fine.
     pub amplitudes: Vec<f64>,
     /// The real map's variogram slope.
@@ -118,8 +128,22 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
     let table = NoiseTable::new(opts.seed);
     let amplitudes: Vec<f64> = (1..=k).map(|j| amplitude(finest, roughness, j)).collect();
     let (mut synth, mut plain) = (lv[k].clone(), lv[k].clone());
+    // The noise follows the decimated map's local detail, carried down to
+    // each finer level by nearest sample.
+    let mut gain = opts
+        .local
+        .then(|| detail_gain(&lv[k], &lv[k + 1], LOCAL_RADIUS));
     for (j, &a) in amplitudes.iter().enumerate() {
-        synth = synthesize(&synth, &table, j + 1, a);
+        let next = synthesize_with_gain(&synth, &table, j + 1, a, gain.as_deref());
+        if let Some(g) = &gain {
+            let (cw, w) = (synth.width, next.width);
+            gain = Some(
+                (0..next.width * next.height)
+                    .map(|i| g[(i / w / 2) * cw + (i % w) / 2])
+                    .collect(),
+            );
+        }
+        synth = next;
         plain = synthesize(&plain, &table, j + 1, 0.0);
     }
     let (w, h) = (synth.width.min(map.width()), synth.height.min(map.height()));
@@ -142,6 +166,7 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
         factor: opts.factor,
         roughness,
         roughness_measured: measured,
+        local: opts.local,
         amplitudes,
         real_variogram_slope: real_slope,
         synthesised: surface(&synth),

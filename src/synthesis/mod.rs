@@ -197,19 +197,89 @@ fn pow2(x: f64) -> f64 {
     }
 }
 
+/// How much detail `fine` has around each of its samples against the
+/// subdivision of `coarse` (its next coarser level), over the level's
+/// whole: the square root of the mean squared detail within `radius`
+/// samples, over that of the whole level (1 where the level has none).
+/// Noise scaled by it is loud where the map is rough and quiet where it is
+/// smooth, instead of one amplitude everywhere.
+pub fn detail_gain(fine: &PyramidLevel, coarse: &PyramidLevel, radius: usize) -> Vec<f64> {
+    let (up, nd) = subdivide(coarse);
+    let (w, h, uw) = (fine.width, fine.height, 2 * coarse.width - 1);
+    let uh = 2 * coarse.height - 1;
+    // Squared detail and whether it counts, then box sums by rows and columns.
+    let mut sq = vec![0f64; w * h];
+    let mut n = vec![0f64; w * h];
+    for y in 0..h.min(uh) {
+        for x in 0..w.min(uw) {
+            let (f, u) = (y * w + x, y * uw + x);
+            if !(fine.nodata[f] || nd[u]) {
+                let d = fine.data[f] as f64 - up[u];
+                sq[f] = d * d;
+                n[f] = 1.0;
+            }
+        }
+    }
+    let total = sq.iter().sum::<f64>() / n.iter().sum::<f64>().max(1.0);
+    let boxed = |v: &[f64]| {
+        let r = radius as i64;
+        let mut rows = vec![0f64; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (a, b) = ((x as i64 - r).max(0) as usize, (x + radius).min(w - 1));
+                rows[y * w + x] = v[y * w + a..=y * w + b].iter().sum();
+            }
+        }
+        let mut out = vec![0f64; w * h];
+        for y in 0..h {
+            let (a, b) = ((y as i64 - r).max(0) as usize, (y + radius).min(h - 1));
+            for x in 0..w {
+                out[y * w + x] = (a..=b).map(|j| rows[j * w + x]).sum();
+            }
+        }
+        out
+    };
+    let (s, c) = (boxed(&sq), boxed(&n));
+    s.iter()
+        .zip(&c)
+        .map(|(&s, &c)| {
+            if total > 0.0 && c > 0.0 {
+                (s / c / total).sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
 /// The `k`-th synthesised level (k ≥ 1) from the level above it: its
 /// subdivision plus `amp` times the table's noise, as f32; no-data where the
 /// subdivision is.
 pub fn synthesize(coarse: &PyramidLevel, table: &NoiseTable, k: usize, amp: f64) -> PyramidLevel {
+    synthesize_with_gain(coarse, table, k, amp, None)
+}
+
+/// [`synthesize`] with the noise at each fine sample also scaled by
+/// `gain` at the coarse sample it lies in (one value per coarse sample,
+/// [`detail_gain`]).
+pub fn synthesize_with_gain(
+    coarse: &PyramidLevel,
+    table: &NoiseTable,
+    k: usize,
+    amp: f64,
+    gain: Option<&[f64]>,
+) -> PyramidLevel {
     let (up, nodata) = subdivide(coarse);
     let w = 2 * coarse.width - 1;
+    let cw = coarse.width;
     let mut data = vec![0f32; up.len()];
     data.par_chunks_mut(w)
         .zip(up.par_chunks(w))
         .enumerate()
         .for_each(|(y, (row, u))| {
             for (x, (d, &v)) in row.iter_mut().zip(u).enumerate() {
-                *d = (v + amp * table.at(k, x as i64, y as i64)) as f32;
+                let g = gain.map_or(1.0, |g| g[(y / 2) * cw + x / 2]);
+                *d = (v + amp * g * table.at(k, x as i64, y as i64)) as f32;
             }
         });
     PyramidLevel::from_parts(w, 2 * coarse.height - 1, data, nodata)

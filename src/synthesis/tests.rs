@@ -130,3 +130,26 @@ fn pow2_is_exact_where_it_can_be() {
     assert_eq!(pow2(0.5), std::f64::consts::SQRT_2);
     assert!((pow2(-0.3) - 0.812252396356).abs() < 1e-3);
 }
+
+/// The local gain is large where the map has detail and small where it
+/// has none, and averages 1 in the mean square over the level.
+#[test]
+fn local_gain_follows_the_maps_detail() {
+    let c = level(33, 33, |x, y| (x + y) as f32);
+    // The left half of the fine level is its coarser level's subdivision
+    // (no detail), the right half adds ±3 on alternate samples.
+    let (up, _) = subdivide(&c);
+    let fine = level(65, 65, |x, y| {
+        let v = up[y * 65 + x] as f32;
+        if x > 40 {
+            v + if (x + y) % 2 == 0 { 3.0 } else { -3.0 }
+        } else {
+            v
+        }
+    });
+    let g = detail_gain(&fine, &c, 2);
+    assert_eq!(g[10 * 65 + 10], 0.0, "no detail, no noise");
+    assert!(g[10 * 65 + 55] > 1.0, "{}", g[10 * 65 + 55]);
+    let ms = g.iter().map(|v| v * v).sum::<f64>() / g.len() as f64;
+    assert!((ms - 1.0).abs() < 0.1, "{ms}");
+}
