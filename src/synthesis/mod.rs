@@ -1,4 +1,4 @@
-//! Detail finer than the data (LH04 §5.3; GPU Gems 2 ch. 2): a level
+//! Detail finer than the data (LH04; GPU Gems 2 ch. 2): a level
 //! finer than the map is the interpolatory subdivision of the level above
 //! it plus Gaussian noise read from a small wrapped table.
 //!
