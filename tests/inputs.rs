@@ -705,7 +705,20 @@ fn synthesis_measures_and_bad_options_are_clean_errors() {
             "--factor",
             "4",
         ],
-        "synthesis",
+        "jacksboro",
         "too small",
+    );
+    // A flat map has no detail to continue.
+    let flat = tmp("flat.asc");
+    let mut asc = String::from("ncols 16\nnrows 16\nxllcorner 0\nyllcorner 0\ncellsize 10\n");
+    for _ in 0..16 {
+        asc.push_str(&"5 ".repeat(16));
+        asc.push('\n');
+    }
+    std::fs::write(&flat, asc).unwrap();
+    fails_cleanly(
+        &["synthesis", flat.to_str().unwrap()],
+        "flat.asc",
+        "no detail",
     );
 }

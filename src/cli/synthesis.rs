@@ -80,7 +80,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         filter: a.filter,
         local: a.local,
     };
-    let (r, s) = synthesis::run(&map, &opts)?;
+    let (r, s) =
+        synthesis::run(&map, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", a.map.display()))?;
     if let Some(out) = &a.out {
         // The real map's 95th-percentile slope shades at 45°, so maps of
         // any relief and cell size show their forms.
