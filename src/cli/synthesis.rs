@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use terraclip::error::write_atomic;
 use terraclip::pyramid::Filter;
 use terraclip::studies::synthesis::{self, Options};
-use terraclip::terrain::Heightmap;
+use terraclip::terrain::{window_of, Heightmap};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -53,16 +53,12 @@ fn window(
             map.height()
         );
     }
-    let (data, nd) = (map.data(), map.nodata_mask());
-    let values = (0..w * h)
-        .map(|i| {
-            let j = (y + i / w) * map.width() + x + i % w;
-            if nd[j] {
-                f32::NAN
-            } else {
-                data[j]
-            }
-        })
+    let rect = [x, y, w, h];
+    let nd = window_of(map.nodata_mask(), map.width(), rect);
+    let values = window_of(map.data(), map.width(), rect)
+        .into_iter()
+        .zip(nd)
+        .map(|(v, nd)| if nd { f32::NAN } else { v })
         .collect();
     Heightmap::from_values(w, h, values, None, map.cell_size, &map.format)
         .map_err(|e| anyhow::anyhow!("{}: the window: {e}", path.display()))

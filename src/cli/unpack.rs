@@ -77,13 +77,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let rect = [x as i64, y as i64, (x + w) as i64 - 1, (y + h) as i64 - 1];
     pyramid.decode_window(a.level, rect)?;
     let lv = &pyramid.levels[a.level];
-    fn crop<T: Copy>(v: &[T], stride: usize, [x, y, w, h]: [usize; 4]) -> Vec<T> {
-        (y..y + h)
-            .flat_map(|r| v[r * stride + x..r * stride + x + w].iter().copied())
-            .collect()
-    }
-    let data = crop(&lv.data, lv.width, [x, y, w, h]);
-    let nodata = crop(&lv.nodata, lv.width, [x, y, w, h]);
+    let data = terraclip::terrain::window_of(&lv.data, lv.width, [x, y, w, h]);
+    let nodata = terraclip::terrain::window_of(&lv.nodata, lv.width, [x, y, w, h]);
     let spacing = (1u64 << a.level.min(62)) as f64;
     let grid = Grid {
         width: w,

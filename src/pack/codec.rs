@@ -784,15 +784,6 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     Ok(())
 }
 
-pub(crate) fn level_of(
-    width: usize,
-    height: usize,
-    data: Vec<f32>,
-    nodata: Vec<bool>,
-) -> PyramidLevel {
-    PyramidLevel::from_parts(width, height, data, nodata)
-}
-
 /// The quantisation of a level: bounded error when `max_error` > 0;
 /// otherwise lossless, on `lattice` where every sample lies on it.
 fn quant_for(level: &PyramidLevel, max_error: f64, lattice: Option<Lattice>) -> Quant {
@@ -859,7 +850,7 @@ impl Packed {
                 }
                 bytes.push(b);
             }
-            let level = level_of(src.width, src.height, data, src.nodata.clone());
+            let level = PyramidLevel::from_parts(src.width, src.height, data, src.nodata.clone());
             packed.push(PackedLevel {
                 width: src.width,
                 height: src.height,
@@ -959,7 +950,7 @@ impl Packed {
                 }
                 Ok(())
             })?;
-        Ok(level_of(lv.width, lv.height, data, nodata))
+        Ok(PyramidLevel::from_parts(lv.width, lv.height, data, nodata))
     }
 
     /// Decodes every level, coarse to fine; finest first.

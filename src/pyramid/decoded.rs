@@ -283,11 +283,7 @@ impl Pyramid {
             let before = *budget;
             let taken = self.decode_plan(k, &plan, budget, false, left);
             left -= taken;
-            let spent = if taken > 0 {
-                (taken as u64 * tile).max(before - *budget)
-            } else {
-                0
-            };
+            let spent = (taken as u64 * tile).max(before - *budget);
             any |= taken > 0;
             let d = self.decoded.as_mut().expect("decoded pyramid");
             d.ahead_credit = d.ahead_credit.saturating_sub(spent);

@@ -471,7 +471,7 @@ fn range_of(data: &[f32], nodata: &[bool]) -> (f32, f32) {
 }
 
 /// The least and greatest of `data` ((+∞, −∞) for none; NaN skipped, as
-/// `f32::min` skips it), folded into `(lo, hi)`. Eight independent running
+/// `f32::min` skips it). Eight independent running
 /// extremes, so the loop vectorises instead of being one serial chain of
 /// comparisons (that chain was an eighth of a pack's decode time).
 pub(crate) fn extremes(data: &[f32]) -> (f32, f32) {

@@ -9,9 +9,9 @@
 use crate::error::{Error, Result};
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
 use crate::synthesis::{
-    amplitude, detail_gain, detail_rms, synthesize, synthesize_with_gain, NoiseTable,
+    amplitude, detail_gain, detail_rms, finer_gain, synthesize, synthesize_with_gain, NoiseTable,
 };
-use crate::terrain::Heightmap;
+use crate::terrain::{window_of, Heightmap};
 use serde::Serialize;
 
 /// What to measure.
@@ -135,14 +135,7 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
         .then(|| detail_gain(&lv[k], &lv[k + 1], LOCAL_RADIUS));
     for (j, &a) in amplitudes.iter().enumerate() {
         let next = synthesize_with_gain(&synth, &table, j + 1, a, gain.as_deref());
-        if let Some(g) = &gain {
-            let (cw, w) = (synth.width, next.width);
-            gain = Some(
-                (0..next.width * next.height)
-                    .map(|i| g[(i / w / 2) * cw + (i % w) / 2])
-                    .collect(),
-            );
-        }
+        gain = gain.map(|g| finer_gain(&g, synth.width, &next));
         synth = next;
         plain = synthesize(&plain, &table, j + 1, 0.0);
     }
@@ -185,12 +178,8 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
 
 /// The first `w` × `h` samples of `l`.
 fn crop(l: &PyramidLevel, w: usize, h: usize) -> PyramidLevel {
-    let mut data = Vec::with_capacity(w * h);
-    let mut nodata = Vec::with_capacity(w * h);
-    for y in 0..h {
-        data.extend_from_slice(&l.data[y * l.width..][..w]);
-        nodata.extend_from_slice(&l.nodata[y * l.width..][..w]);
-    }
+    let data = window_of(&l.data, l.width, [0, 0, w, h]);
+    let nodata = window_of(&l.nodata, l.width, [0, 0, w, h]);
     PyramidLevel::from_parts(w, h, data, nodata)
 }
 

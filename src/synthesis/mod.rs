@@ -252,6 +252,15 @@ pub fn detail_gain(fine: &PyramidLevel, coarse: &PyramidLevel, radius: usize) ->
         .collect()
 }
 
+/// `gain` (one value per sample of a `coarse_width`-wide level) carried
+/// down to the `fine` level synthesised from it, by nearest sample.
+pub fn finer_gain(gain: &[f64], coarse_width: usize, fine: &PyramidLevel) -> Vec<f64> {
+    let w = fine.width;
+    (0..w * fine.height)
+        .map(|i| gain[(i / w / 2) * coarse_width + (i % w) / 2])
+        .collect()
+}
+
 /// The `k`-th synthesised level (k ≥ 1) from the level above it: its
 /// subdivision plus `amp` times the table's noise, as f32; no-data where the
 /// subdivision is.

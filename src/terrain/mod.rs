@@ -62,6 +62,13 @@ pub fn check_dimensions(width: u64, height: u64) -> std::result::Result<(), Stri
     Ok(())
 }
 
+/// The `[x, y, w, h]` window of a row-major grid `stride` wide.
+pub fn window_of<T: Copy>(v: &[T], stride: usize, [x, y, w, h]: [usize; 4]) -> Vec<T> {
+    (y..y + h)
+        .flat_map(|r| v[r * stride + x..r * stride + x + w].iter().copied())
+        .collect()
+}
+
 /// Checks a width × height against [`MAX_SIDE`] alone: the limit of maps
 /// read by rows ([`rows`]), which are never held whole.
 pub fn check_side(width: u64, height: u64) -> std::result::Result<(), String> {
