@@ -225,7 +225,11 @@ layout = "strips"
 fn load_once(path: &Path) -> Result<bool, String> {
     match catch_unwind(AssertUnwindSafe(|| Heightmap::load(path))) {
         Err(_) => Err(format!("panic on {}", path.display())),
-        Ok(Ok(m)) => sound(&m, &path.display().to_string()).map(|()| true),
+        Ok(Ok(m)) => {
+            sound(&m, &path.display().to_string())?;
+            synthesised(&m, &path.display().to_string())?;
+            Ok(true)
+        }
         Ok(Err(e)) => {
             let msg = e.to_string();
             let name = path.file_name().unwrap().to_string_lossy().to_string();
@@ -236,6 +240,34 @@ fn load_once(path: &Path) -> Result<bool, String> {
             }
         }
     }
+}
+
+/// A loaded map through the synthesis study (uniform and local noise):
+/// figures or a clean error (a map too small or flat), never a panic, and
+/// the figures finite.
+fn synthesised(m: &Heightmap, name: &str) -> Result<(), String> {
+    use terraclip::studies::synthesis::{run, Options};
+    for local in [false, true] {
+        let opts = Options {
+            factor: 2,
+            roughness: None,
+            seed: 1,
+            filter: Default::default(),
+            local,
+        };
+        match catch_unwind(AssertUnwindSafe(|| run(m, &opts))) {
+            Err(_) => return Err(format!("{name}: synthesis panicked")),
+            Ok(Ok((r, _))) => {
+                let s = &r.synthesised;
+                let all = [s.variogram_slope, s.slope_ks, s.rmse, r.roughness];
+                if !all.iter().all(|v| v.is_finite()) {
+                    return Err(format!("{name}: synthesis figures not finite: {r:?}"));
+                }
+            }
+            Ok(Err(_)) => {}
+        }
+    }
+    Ok(())
 }
 
 /// A loaded map: as many values and mask entries as texels, every value
