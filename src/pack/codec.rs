@@ -752,16 +752,8 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                 let (sym, pred) = (&*sym, &*pred);
                 let plane = &mut planes.planes[ph];
                 // An escape's value is filled in below; what this writes there is overwritten.
-                let fill = |plane: &mut [f32], q: Quant| {
-                    for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
-                        *r = q.rec(p, s as i64 - K);
-                    }
-                };
-                // The bounded-error case on its own, so its one formula is
-                // inlined into a straight loop.
-                match quant {
-                    Quant::Step { .. } => fill(plane, quant),
-                    _ => fill(plane, quant),
+                for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
+                    *r = quant.rec(p, s as i64 - K);
                 }
                 // Escapes, in coding order, from the side stream.
                 for (i, &s) in sym.iter().enumerate() {
