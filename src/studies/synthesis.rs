@@ -9,7 +9,8 @@
 use crate::error::{Error, Result};
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
 use crate::synthesis::{
-    amplitude, detail_gain, detail_rms, finer_gain, synthesize, synthesize_with_gain, NoiseTable,
+    amplitude, check_roughness, detail_gain, detail_rms, finer_gain, roughness_between, synthesize,
+    synthesize_with_gain, NoiseTable,
 };
 use crate::terrain::{window_of, Heightmap};
 use serde::Serialize;
@@ -97,12 +98,7 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
         }
     };
     if let Some(h) = opts.roughness {
-        if !(h.is_finite() && (0.0..=2.0).contains(&h)) {
-            return Err(Error::value(
-                "synthesis.roughness",
-                format!("{h}: must be within 0..=2"),
-            ));
-        }
+        check_roughness(h).map_err(|r| Error::value("synthesis.roughness", r))?;
     }
     let pyr = Pyramid::build(map, opts.filter, k + 3);
     if pyr.levels.len() < k + 3 {
@@ -122,8 +118,7 @@ pub fn run(map: &Heightmap, opts: &Options) -> Result<(Report, Surfaces)> {
     let next = detail_rms(&lv[k + 1], &lv[k + 2]).ok_or_else(too_flat)?;
     let (roughness, measured) = match opts.roughness {
         Some(h) => (h, false),
-        None if finest > 0.0 && next > 0.0 => ((next / finest).log2().clamp(0.0, 2.0), true),
-        None => return Err(too_flat()),
+        None => (roughness_between(finest, next).ok_or_else(too_flat)?, true),
     };
     let table = NoiseTable::new(opts.seed);
     let amplitudes: Vec<f64> = (1..=k).map(|j| amplitude(finest, roughness, j)).collect();

@@ -85,8 +85,19 @@ fn four_point(v0: f64, v1: f64, v2: f64, v3: f64) -> f64 {
 /// clamped at the edges). A sample is no-data where any coarse sample its
 /// stencil reads is. Returns the heights as f64 and the no-data flags.
 pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
+    subdivide_window(coarse, [0, 0, 2 * coarse.width - 1, 2 * coarse.height - 1])
+}
+
+/// The samples `[x, y, w, h]` of [`subdivide`]'s level: the same bits as
+/// the whole level's, whichever window they are computed in, so a level
+/// made tile by tile equals the level made whole. `coarse` need hold only
+/// the samples the window's stencils read (coarse columns x/2 − 1 to
+/// (x + w − 1)/2 + 2, and rows likewise, clamped to the level).
+pub fn subdivide_window(
+    coarse: &PyramidLevel,
+    [x0, y0, w, h]: [usize; 4],
+) -> (Vec<f64>, Vec<bool>) {
     let (cw, ch) = (coarse.width, coarse.height);
-    let (w, h) = (2 * cw - 1, 2 * ch - 1);
     let c = |i: i64, j: i64| {
         let (i, j) = (
             i.clamp(0, cw as i64 - 1) as usize,
@@ -103,36 +114,51 @@ pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
             s.iter().any(|v| v.1),
         )
     };
+    // The coarse cells the window lies in, and the midpoints each centre
+    // reads, computed once: row midpoints (between (i, j) and (i + 1, j))
+    // for rows j − 1 to j + 2, column midpoints for columns i − 1 to i + 2.
+    let (i0, j0) = ((x0 / 2) as i64, (y0 / 2) as i64);
+    let (i1, j1) = (((x0 + w - 1) / 2) as i64, ((y0 + h - 1) / 2) as i64);
+    let ni = (i1 - i0 + 1) as usize;
+    let row_mid: Vec<(f64, bool)> = (j0 - 1..=j1 + 2)
+        .flat_map(|j| (i0..=i1).map(move |i| (i, j)))
+        .map(|(i, j)| line(i, j, 1, 0))
+        .collect();
+    let col_mid: Vec<(f64, bool)> = (j0..=j1)
+        .flat_map(|j| (i0 - 1..=i1 + 2).map(move |i| (i, j)))
+        .map(|(i, j)| line(i, j, 0, 1))
+        .collect();
+    let rm = |i: i64, j: i64| row_mid[(j - j0 + 1) as usize * ni + (i - i0) as usize];
+    let cm = |i: i64, j: i64| col_mid[(j - j0) as usize * (ni + 3) + (i - i0 + 1) as usize];
     let mut data = vec![0f64; w * h];
     let mut nodata = vec![false; w * h];
-    data.par_chunks_mut(w)
-        .zip(nodata.par_chunks_mut(w))
+    data.par_chunks_mut(w.max(1))
+        .zip(nodata.par_chunks_mut(w.max(1)))
         .enumerate()
-        .for_each(|(y, (row, nd))| {
+        .for_each(|(r, (row, nd))| {
+            let y = y0 + r;
             let j = (y / 2) as i64;
-            for x in 0..w {
+            for (o, (out, out_nd)) in row.iter_mut().zip(nd.iter_mut()).enumerate() {
+                let x = x0 + o;
                 let i = (x / 2) as i64;
                 let (v, n) = match (x % 2, y % 2) {
                     (0, 0) => c(i, j),
-                    (1, 0) => line(i, j, 1, 0),
-                    (0, _) => line(i, j, 0, 1),
+                    (1, 0) => rm(i, j),
+                    (0, _) => cm(i, j),
                     _ => {
-                        // The row interpolation through the two column
-                        // midpoints' rows, and the column one through the
-                        // two row midpoints' columns, each over the coarse
-                        // samples' midpoints.
-                        let row_mid = |jj: i64| line(i, jj, 1, 0);
-                        let col_mid = |ii: i64| line(ii, j, 0, 1);
-                        let r = [-1, 0, 1, 2].map(|t| col_mid(i + t));
-                        let q = [-1, 0, 1, 2].map(|t| row_mid(j + t));
+                        // The row interpolation through the four column
+                        // midpoints beside the centre, and the column one
+                        // through the four row midpoints above and below.
+                        let r = [-1, 0, 1, 2].map(|t| cm(i + t, j));
+                        let q = [-1, 0, 1, 2].map(|t| rm(i, j + t));
                         let a = four_point(r[0].0, r[1].0, r[2].0, r[3].0);
                         let b = four_point(q[0].0, q[1].0, q[2].0, q[3].0);
                         let n = r.iter().chain(&q).any(|v| v.1);
                         ((a + b) / 2.0, n)
                     }
                 };
-                row[x] = v;
-                nd[x] = n;
+                *out = v;
+                *out_nd = n;
             }
         });
     (data, nodata)
@@ -143,12 +169,25 @@ pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
 /// at its finest step, the amplitude its first synthesised level continues.
 /// `None` when no sample counts.
 pub fn detail_rms(fine: &PyramidLevel, coarse: &PyramidLevel) -> Option<f64> {
-    let (up, nd) = subdivide(coarse);
-    let uw = 2 * coarse.width - 1;
+    let w = fine.width.min(2 * coarse.width - 1);
+    let h = fine.height.min(2 * coarse.height - 1);
+    detail_rms_window(fine, coarse, [0, 0, w, h])
+}
+
+/// [`detail_rms`] over the samples `[x, y, w, h]` of `fine` alone (which
+/// must lie in both levels), in the same order: a pack's detail measured
+/// in the window decoded for it.
+pub fn detail_rms_window(
+    fine: &PyramidLevel,
+    coarse: &PyramidLevel,
+    rect: [usize; 4],
+) -> Option<f64> {
+    let [x0, y0, w, h] = rect;
+    let (up, nd) = subdivide_window(coarse, rect);
     let (mut sum, mut count) = (0.0f64, 0u64);
-    for y in 0..fine.height.min(2 * coarse.height - 1) {
-        for x in 0..fine.width.min(uw) {
-            let (f, u) = (y * fine.width + x, y * uw + x);
+    for y in 0..h {
+        for x in 0..w {
+            let (f, u) = ((y0 + y) * fine.width + x0 + x, y * w + x);
             if fine.nodata[f] || nd[u] {
                 continue;
             }
@@ -170,6 +209,57 @@ pub fn amplitude(rms: f64, h: f64, k: usize) -> f64 {
         a *= f;
     }
     a
+}
+
+/// The largest roughness synthesis continues (and the study measures).
+pub const MAX_ROUGHNESS: f64 = 2.0;
+
+/// Checks a roughness exponent given by hand.
+pub fn check_roughness(h: f64) -> Result<(), String> {
+    if h.is_finite() && (0.0..=MAX_ROUGHNESS).contains(&h) {
+        Ok(())
+    } else {
+        Err(format!("{h}: must be within 0..={MAX_ROUGHNESS}"))
+    }
+}
+
+/// The roughness exponent a map's detail shows between its finest step
+/// (`finest`, [`detail_rms`] of levels 0 and 1) and the next (`next`,
+/// levels 1 and 2): H with 2^H = next / finest, as fractal terrain's
+/// detail shrinks by 2^−H per halving of the step, within
+/// 0..=[`MAX_ROUGHNESS`], to the nearest 1/1024 (found by bisection on
+/// [`pow2`] rather than by `log2`, so every machine agrees). `None` when
+/// either has no detail.
+pub fn roughness_between(finest: f64, next: f64) -> Option<f64> {
+    if !(finest > 0.0 && next > 0.0 && finest.is_finite() && next.is_finite()) {
+        return None;
+    }
+    let ratio = next / finest;
+    let top = (MAX_ROUGHNESS * 1024.0) as i64;
+    let at = |q: i64| pow2(q as f64 / 1024.0);
+    if ratio <= 1.0 {
+        return Some(0.0);
+    }
+    if ratio >= at(top) {
+        return Some(MAX_ROUGHNESS);
+    }
+    // at(lo) <= ratio < at(hi).
+    let (mut lo, mut hi) = (0i64, top);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if at(mid) <= ratio {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    // The nearer of the two in ratio terms (log distance).
+    let q = if ratio / at(lo) <= at(hi) / ratio {
+        lo
+    } else {
+        hi
+    };
+    Some(q as f64 / 1024.0)
 }
 
 /// 2^x for the roughness factor, from integer powers and square roots (both
@@ -278,20 +368,38 @@ pub fn synthesize_with_gain(
     amp: f64,
     gain: Option<&[f64]>,
 ) -> PyramidLevel {
-    let (up, nodata) = subdivide(coarse);
-    let w = 2 * coarse.width - 1;
+    let (w, h) = (2 * coarse.width - 1, 2 * coarse.height - 1);
+    let (data, nodata) = synthesize_window(coarse, table, k, amp, gain, [0, 0, w, h]);
+    PyramidLevel::from_parts(w, h, data, nodata)
+}
+
+/// The samples `[x, y, w, h]` of [`synthesize_with_gain`]'s level, the
+/// same bits as the whole level's (what [`subdivide_window`] says `coarse`
+/// must hold): heights and no-data flags, row-major over the window.
+pub fn synthesize_window(
+    coarse: &PyramidLevel,
+    table: &NoiseTable,
+    k: usize,
+    amp: f64,
+    gain: Option<&[f64]>,
+    rect: [usize; 4],
+) -> (Vec<f32>, Vec<bool>) {
+    let [x0, y0, w, _] = rect;
+    let (up, nodata) = subdivide_window(coarse, rect);
     let cw = coarse.width;
     let mut data = vec![0f32; up.len()];
-    data.par_chunks_mut(w)
-        .zip(up.par_chunks(w))
+    data.par_chunks_mut(w.max(1))
+        .zip(up.par_chunks(w.max(1)))
         .enumerate()
-        .for_each(|(y, (row, u))| {
-            for (x, (d, &v)) in row.iter_mut().zip(u).enumerate() {
+        .for_each(|(r, (row, u))| {
+            let y = y0 + r;
+            for (o, (d, &v)) in row.iter_mut().zip(u).enumerate() {
+                let x = x0 + o;
                 let g = gain.map_or(1.0, |g| g[(y / 2) * cw + x / 2]);
                 *d = (v + amp * g * table.at(k, x as i64, y as i64)) as f32;
             }
         });
-    PyramidLevel::from_parts(w, 2 * coarse.height - 1, data, nodata)
+    (data, nodata)
 }
 
 #[cfg(test)]

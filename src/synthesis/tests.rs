@@ -153,3 +153,92 @@ fn local_gain_follows_the_maps_detail() {
     let ms = g.iter().map(|v| v * v).sum::<f64>() / g.len() as f64;
     assert!((ms - 1.0).abs() < 0.1, "{ms}");
 }
+
+/// A level made window by window (tiles of odd and even sizes and
+/// origins, as a pyramid decodes them) is the whole level's bits, no-data
+/// included, with the coarse level holding only what each window's stencil
+/// reads (the rest NaN, which would spread into any sample that read it).
+#[test]
+fn windows_give_the_whole_levels_bits() {
+    let mut c = level(23, 19, |x, y| {
+        ((x * 13 + y * 7) % 17) as f32 * 3.5 - (y as f32).sqrt()
+    });
+    c.nodata[9 * 23 + 4] = true;
+    let t = NoiseTable::new(99);
+    let whole = synthesize(&c, &t, 2, 1.25);
+    let (w, h) = (whole.width, whole.height);
+    for side in [7usize, 8, 16] {
+        for ty in 0..h.div_ceil(side) {
+            for tx in 0..w.div_ceil(side) {
+                let (x0, y0) = (tx * side, ty * side);
+                let rect = [x0, y0, side.min(w - x0), side.min(h - y0)];
+                // Only the stencil's coarse samples are kept.
+                let (i0, j0) = ((x0 / 2) as i64 - 1, (y0 / 2) as i64 - 1);
+                let (i1, j1) = (
+                    ((x0 + rect[2] - 1) / 2 + 2) as i64,
+                    ((y0 + rect[3] - 1) / 2 + 2) as i64,
+                );
+                let mut part = c.clone();
+                for j in 0..c.height as i64 {
+                    for i in 0..c.width as i64 {
+                        let inside = |v: i64, a: i64, b: i64, n: usize| {
+                            (a.max(0)..=b.min(n as i64 - 1)).contains(&v)
+                        };
+                        if !(inside(i, i0, i1, c.width) && inside(j, j0, j1, c.height)) {
+                            part.data[j as usize * c.width + i as usize] = f32::NAN;
+                        }
+                    }
+                }
+                let (v, nd) = synthesize_window(&part, &t, 2, 1.25, None, rect);
+                for y in 0..rect[3] {
+                    for x in 0..rect[2] {
+                        let o = (y0 + y) * w + x0 + x;
+                        assert_eq!(
+                            v[y * rect[2] + x].to_bits(),
+                            whole.data[o].to_bits(),
+                            "side {side}, sample ({}, {})",
+                            x0 + x,
+                            y0 + y
+                        );
+                        assert_eq!(nd[y * rect[2] + x], whole.nodata[o]);
+                    }
+                }
+            }
+        }
+    }
+    // The detail measured in a window is the whole level's over it.
+    let all = detail_rms(&whole, &c).unwrap();
+    let win = detail_rms_window(&whole, &c, [0, 0, w, h]).unwrap();
+    assert_eq!(all.to_bits(), win.to_bits());
+}
+
+/// The roughness between two steps' detail: 2^H = next / finest, to the
+/// nearest 1/1024, clamped to 0..=2, and none without detail.
+#[test]
+fn roughness_is_the_ratio_of_the_steps_detail() {
+    assert_eq!(roughness_between(1.0, 2.0), Some(1.0));
+    assert_eq!(
+        roughness_between(3.0, 3.0 * std::f64::consts::SQRT_2),
+        Some(0.5)
+    );
+    // 0.7 is 716.8 / 1024: the nearest step is 717.
+    assert_eq!(
+        roughness_between(1.0, 1.624_504_792_712_471),
+        Some(717.0 / 1024.0)
+    );
+    assert_eq!(
+        roughness_between(2.0, 1.0),
+        Some(0.0),
+        "smoother when coarser: 0"
+    );
+    assert_eq!(roughness_between(1.0, 100.0), Some(2.0), "clamped");
+    assert_eq!(roughness_between(0.0, 1.0), None);
+    assert_eq!(roughness_between(1.0, f64::NAN), None);
+    // Against log2, away from a rounding tie.
+    for r in [1.1f64, 1.37, 2.9, 3.6] {
+        let h = roughness_between(1.0, r).unwrap();
+        assert!((h - r.log2()).abs() <= 0.5 / 1024.0 + 1e-12, "{r}: {h}");
+    }
+    assert!(check_roughness(-0.1).is_err() && check_roughness(f64::NAN).is_err());
+    assert!(check_roughness(2.5).is_err() && check_roughness(0.0).is_ok());
+}
