@@ -104,7 +104,7 @@ impl Frame {
         let k = layout.len();
         let base = &pyramid.levels[0];
         let vs = world.vertical_scale as f32;
-        let [lo, hi] = params.height_range.unwrap_or([base.min, base.max]);
+        let [lo, hi] = params.height_range.unwrap_or(pyramid.height_range());
         let (lo, hi) = (lo * vs, hi * vs);
         let span = if hi > lo { hi - lo } else { 1.0 };
 

@@ -109,6 +109,75 @@ pub struct Built {
     pub evicted: u64,
 }
 
+/// Level `l`, `size` samples, no page of which is touched until a tile is
+/// decoded into it (kept on small pages, so memory follows what is
+/// decoded), with `range` as its height bounds.
+fn reserved(l: usize, [w, h]: [usize; 2], [lo, hi]: [f32; 2]) -> Result<PyramidLevel, String> {
+    let n = w.saturating_mul(h);
+    let no_room =
+        || format!("level {l} of {w}×{h} samples: the address space for it cannot be reserved");
+    let mut data = huge::try_zeroed::<f32>(n).ok_or_else(no_room)?;
+    let mut nodata = huge::try_zeroed::<bool>(n).ok_or_else(no_room)?;
+    huge::small_pages(&mut data);
+    huge::small_pages(&mut nodata);
+    Ok(PyramidLevel {
+        width: w,
+        height: h,
+        data,
+        nodata,
+        min: lo,
+        max: hi,
+    })
+}
+
+/// Two tile sources as one pyramid's: `finer`'s levels first, then
+/// `coarser`'s, or, with none, levels that were whole already (which are
+/// never asked for).
+#[derive(Debug)]
+struct Stacked {
+    finer: Arc<dyn TileSource>,
+    coarser: Option<Arc<dyn TileSource>>,
+    /// Levels `finer` gives.
+    k: usize,
+    /// Every level's size and range, finest first.
+    sizes: Vec<[usize; 2]>,
+    ranges: Vec<[f32; 2]>,
+}
+
+impl TileSource for Stacked {
+    fn path(&self) -> &Path {
+        self.coarser.as_ref().unwrap_or(&self.finer).path()
+    }
+    fn sizes(&self) -> Vec<[usize; 2]> {
+        self.sizes.clone()
+    }
+    fn ranges(&self) -> Vec<[f32; 2]> {
+        self.ranges.clone()
+    }
+    fn tile(&self) -> usize {
+        self.finer.tile()
+    }
+    fn reads(&self, l: usize, t: [usize; 2]) -> Option<[i64; 4]> {
+        match &self.coarser {
+            _ if l < self.k => self.finer.reads(l, t),
+            Some(c) => c.reads(l - self.k, t),
+            None => None,
+        }
+    }
+    fn decode(
+        &self,
+        l: usize,
+        t: [usize; 2],
+        coarse: &PyramidLevel,
+    ) -> Result<(Vec<f32>, Vec<bool>), String> {
+        match &self.coarser {
+            _ if l < self.k => self.finer.decode(l, t, coarse),
+            Some(c) => c.decode(l - self.k, t, coarse),
+            None => Err(format!("level {l} is whole and has no tiles to decode")),
+        }
+    }
+}
+
 impl Pyramid {
     /// A pyramid of every level of `src`, decoded as
     /// [`Pyramid::build_around`] asks, about `budget` samples per call.
@@ -128,26 +197,7 @@ impl Pyramid {
             .iter()
             .zip(&ranges)
             .enumerate()
-            .map(|(l, (&[w, h], &[lo, hi]))| {
-                let n = w.saturating_mul(h);
-                let no_room = || {
-                    format!(
-                        "level {l} of {w}×{h} samples: the address space for it cannot be reserved"
-                    )
-                };
-                let mut data = huge::try_zeroed::<f32>(n).ok_or_else(no_room)?;
-                let mut nodata = huge::try_zeroed::<bool>(n).ok_or_else(no_room)?;
-                huge::small_pages(&mut data);
-                huge::small_pages(&mut nodata);
-                Ok(PyramidLevel {
-                    width: w,
-                    height: h,
-                    data,
-                    nodata,
-                    min: lo,
-                    max: hi,
-                })
-            })
+            .map(|(l, (&size, &range))| reserved(l, size, range))
             .collect::<Result<_, String>>()?;
         let side = src.tile();
         let tiles: Vec<Tiles> = levels.iter().map(|l| Tiles::new(l, false, side)).collect();
@@ -171,6 +221,7 @@ impl Pyramid {
                 tiles_total,
                 samples_built: 0,
             }),
+            finer: 0,
         })
     }
 
@@ -180,6 +231,132 @@ impl Pyramid {
         let d = self.decoded.as_ref()?;
         let e = d.error.as_ref()?;
         Some(crate::Error::file(d.src.path(), e.clone()))
+    }
+
+    /// This pyramid with `finer`'s levels before its own, each finer level
+    /// made a tile at a time from the next coarser one, as
+    /// [`Pyramid::build_around`] asks, within `budget` samples a call (a
+    /// decoded pyramid keeps its own budget): LH04's levels finer than the
+    /// data. The pyramid's own levels stay as they are, whole or decoded
+    /// from a pack; a lazily filtered one, whose coarser levels wait on its
+    /// finer ones, cannot be refined.
+    pub fn with_finer(self, finer: Arc<dyn TileSource>, budget: u64) -> Result<Pyramid, String> {
+        if self.lazy.is_some() {
+            return Err("a pyramid filtered lazily cannot take finer levels".into());
+        }
+        let (fs, fr) = (finer.sizes(), finer.ranges());
+        let k = fs.len();
+        if k == 0 || fr.len() != k {
+            return Err("no finer level to add".into());
+        }
+        // Each level the vertex-centred half of the one before.
+        let mut sizes = fs.clone();
+        sizes.extend(self.levels.iter().map(|l| [l.width, l.height]));
+        if let Some(w) = sizes
+            .windows(2)
+            .find(|w| w[0] != [2 * w[1][0] - 1, 2 * w[1][1] - 1])
+        {
+            return Err(format!(
+                "a finer level of {}×{} samples cannot lie over one of {}×{}",
+                w[0][0], w[0][1], w[1][0], w[1][1]
+            ));
+        }
+        let side = finer.tile();
+        let Pyramid {
+            filter,
+            levels,
+            ranges,
+            decoded,
+            progress,
+            finer: had,
+            ..
+        } = self;
+        let (coarser, tiles, resident, budget, progress) = match decoded {
+            Some(d) => {
+                if d.src.tile() != side {
+                    return Err(format!(
+                        "finer tiles of {side}² cannot stack on a pack's of {}²",
+                        d.src.tile()
+                    ));
+                }
+                (Some(d.src), d.tiles, d.resident, d.budget, progress)
+            }
+            None => {
+                if budget == 0 {
+                    return Err("the budget must be at least 1 sample".into());
+                }
+                let tiles = levels.iter().map(|l| Tiles::new(l, true, side)).collect();
+                (None, tiles, vec![Vec::new(); levels.len()], budget, None)
+            }
+        };
+        let mut all: Vec<PyramidLevel> = fs
+            .iter()
+            .zip(&fr)
+            .enumerate()
+            .map(|(l, (&size, &range))| reserved(l, size, range))
+            .collect::<Result<_, String>>()?;
+        let mut all_tiles: Vec<Tiles> = all.iter().map(|l| Tiles::new(l, false, side)).collect();
+        let added: u64 = all_tiles.iter().map(|t| (t.nx * t.ny) as u64).sum();
+        let mut all_ranges: Vec<RangeGrid> = all.iter().map(RangeGrid::empty).collect();
+        all_ranges.extend(ranges);
+        all_tiles.extend(tiles);
+        let mut all_resident = vec![Vec::new(); k];
+        all_resident.extend(resident);
+        let mut range_list = fr;
+        range_list.extend(levels.iter().map(|l| [l.min, l.max]));
+        all.extend(levels);
+        let mut progress = progress.unwrap_or_default();
+        progress.tiles_total += added;
+        Ok(Pyramid {
+            filter,
+            levels: all,
+            ranges: all_ranges,
+            lazy: None,
+            decoded: Some(Box::new(Decoded {
+                src: Arc::new(Stacked {
+                    finer,
+                    coarser,
+                    k,
+                    sizes,
+                    ranges: range_list,
+                }),
+                tiles: all_tiles,
+                resident: all_resident,
+                budget,
+                ahead_credit: 0,
+                last: Vec::new(),
+                error: None,
+            })),
+            progress: Some(progress),
+            finer: had + k,
+        })
+    }
+
+    /// Every level whole: a decoded pyramid's tiles all decoded (coarse
+    /// first) and its levels made ordinary ones, with their own height
+    /// ranges, for the schemes and effects that read whole levels. Errors
+    /// name the pack, the level and the tile.
+    pub fn whole(mut self) -> crate::Result<Pyramid> {
+        if self.decoded.is_none() {
+            return Ok(self);
+        }
+        for l in (0..self.levels.len()).rev() {
+            let lv = &self.levels[l];
+            let all = [0, 0, lv.width as i64 - 1, lv.height as i64 - 1];
+            self.decode_window(l, all)?;
+        }
+        let levels = std::mem::take(&mut self.levels)
+            .into_iter()
+            .map(|l| PyramidLevel::from_parts(l.width, l.height, l.data, l.nodata))
+            .collect();
+        let mut p = Pyramid::from_levels(levels, self.filter);
+        p.finer = self.finer;
+        Ok(p)
+    }
+
+    /// The side of the tiles a decoded pyramid makes its levels in.
+    pub fn tile_side(&self) -> Option<usize> {
+        self.decoded.as_ref().map(|d| d.src.tile())
     }
 
     /// Tiles a decoded pyramid holds now, every level counted.

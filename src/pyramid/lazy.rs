@@ -231,6 +231,7 @@ impl Pyramid {
                 tiles_total,
                 samples_built: 0,
             }),
+            finer: 0,
         })
     }
 

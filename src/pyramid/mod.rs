@@ -314,6 +314,9 @@ pub struct Pyramid {
     decoded: Option<Box<decoded::Decoded>>,
     /// A lazy pyramid's progress, kept after it completes.
     progress: Option<LazyStats>,
+    /// Levels before the map's own, finer than its data
+    /// ([`Pyramid::with_finer`]): level `finer` is the map's finest.
+    finer: usize,
 }
 
 /// Side of the tiles whose height bounds [`RangeGrid`] keeps.
@@ -377,6 +380,7 @@ impl Pyramid {
             lazy: None,
             decoded: None,
             progress: None,
+            finer: 0,
         };
         p.extend_to(count);
         p
@@ -392,7 +396,24 @@ impl Pyramid {
             lazy: None,
             decoded: None,
             progress: None,
+            finer: 0,
         }
+    }
+
+    /// Levels finer than the map's data, before its own
+    /// ([`Pyramid::with_finer`]); level `finer_levels()` is the map's
+    /// finest.
+    pub fn finer_levels(&self) -> usize {
+        self.finer
+    }
+
+    /// The least and greatest height of the map's own finest level: the
+    /// range a height ramp spans, the same whether or not finer levels
+    /// are synthesised and however they are made (their own bounds,
+    /// conservative until they are whole, are not).
+    pub fn height_range(&self) -> [f32; 2] {
+        let l = &self.levels[self.finer];
+        [l.min, l.max]
     }
 
     /// Bounds on the heights that level `l` gives, edge-clamped, at level

@@ -249,6 +249,19 @@ impl Session {
         let incremental = scene.lod.scheme == crate::scene::LodScheme::Clipmap
             && !effects.shadows
             && !effects.normal_map;
+        // Synthesised levels come before the map's own: the map needs as
+        // many fewer, but at least the three its detail and roughness are
+        // measured over.
+        let finer = scene.terrain.synthesis.map_or(0, |s| s.levels);
+        let base_levels = |w: usize, h: usize| {
+            let fine = |v: usize| ((v - 1) << finer) + 1;
+            let count = cfg.pyramid_levels(fine(w), fine(h));
+            if finer > 0 {
+                count.saturating_sub(finer).max(3)
+            } else {
+                count
+            }
+        };
         let (pyramid, world) = if let Some(path) = pack {
             if scene.pyramid.lazy {
                 return Err(Error::value(
@@ -276,7 +289,7 @@ impl Session {
                 } = passes.time("terrain", || {
                     crate::pack::file::read_terrain(&scene.terrain, &path)
                 })?;
-                let count = cfg.pyramid_levels(levels[0].width, levels[0].height);
+                let count = base_levels(levels[0].width, levels[0].height);
                 levels.truncate(count.max(1));
                 let world = WorldMap::for_terrain(&scene.terrain, cell_size);
                 // The pack's levels were made with its own filter.
@@ -291,16 +304,48 @@ impl Session {
                 LazyBase::Procedural(p) => [p.width, p.height],
                 LazyBase::Heightmap(h) => [h.width(), h.height()],
             };
-            let count = cfg.pyramid_levels(w, h);
+            let count = base_levels(w, h);
             let p = Pyramid::lazy(base, filter, count, scene.pyramid.budget)
                 .map_err(|r| Error::value("pyramid", r))?;
             (p, world)
         } else {
             let h = passes.time("terrain", || terrain::load(&scene.terrain, &scene.base_dir))?;
             let world = WorldMap::for_terrain(&scene.terrain, h.cell_size);
-            let count = cfg.pyramid_levels(h.width(), h.height());
+            let count = base_levels(h.width(), h.height());
             let p = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
             (p, world)
+        };
+        let (pyramid, world) = match &scene.terrain.synthesis {
+            None => (pyramid, world),
+            Some(spec) => {
+                let path = match &scene.terrain.file {
+                    Some(f) => scene.base_dir.join(f),
+                    None => "procedural terrain".into(),
+                };
+                let bad = |r| Error::value("terrain.synthesis", r);
+                let (p, _) = passes
+                    .time("synthesis", || {
+                        crate::synthesis::source::refine(pyramid, spec, &path, scene.pyramid.budget)
+                    })
+                    .map_err(bad)?;
+                let p = if incremental {
+                    p
+                } else {
+                    let l = &p.levels[0];
+                    if (l.width as u64) * (l.height as u64) > terrain::MAX_TEXELS {
+                        return Err(bad(format!(
+                            "its finest level of {}×{} samples is over the {} held whole for a scheme other than the clipmap or for shadows or normal-map; ask for fewer levels",
+                            l.width,
+                            l.height,
+                            terrain::MAX_TEXELS
+                        )));
+                    }
+                    passes.time("pyramid", || p.whole())?
+                };
+                let scale = (1u64 << spec.levels) as f64;
+                let cell = [world.cell[0] / scale, world.cell[1] / scale];
+                (p, WorldMap { cell, ..world })
+            }
         };
         // The scheme holds the only reference, so a lazy pyramid grows in
         // place.

@@ -56,6 +56,9 @@ pub struct Terrain {
     /// given in the same world coordinates.
     #[serde(default)]
     pub origin: [f64; 2],
+    /// Levels finer than the map, synthesised (LH04; docs/synthesis.md).
+    #[serde(default)]
+    pub synthesis: Option<crate::synthesis::source::Spec>,
 }
 
 fn one() -> f64 {
@@ -278,6 +281,15 @@ impl Scene {
             let [x, y] = c.pair();
             if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
                 return Err(self.bad("terrain.cell_size", "must be finite and > 0"));
+            }
+        }
+        if let Some(spec) = &self.terrain.synthesis {
+            spec.validate().map_err(|(k, r)| self.bad(k, r))?;
+            if self.pyramid.lazy {
+                return Err(self.bad(
+                    "terrain.synthesis",
+                    "a lazy pyramid filters its coarser levels from tiles of the finest as frames need them, and synthesis makes finer levels from the coarser ones: they cannot both apply; remove pyramid.lazy",
+                ));
             }
         }
         crate::clipmap::region::check_n(self.lod.n).map_err(|r| self.bad("lod.n", r))?;

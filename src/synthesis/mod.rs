@@ -13,6 +13,8 @@
 use crate::pyramid::PyramidLevel;
 use rayon::prelude::*;
 
+pub mod source;
+
 /// Side of the wrapped noise table.
 pub const TABLE: usize = 64;
 

@@ -1,0 +1,246 @@
+//! `[terrain] synthesis`: levels finer than the map, made a tile at a time
+//! as the clipmap's windows reach them. They are the same bits whichever
+//! tiles are made in whichever order, evicted or not, as the levels made
+//! whole, and the same as the synthesis study's chain of [`synthesize`];
+//! scenes draw them, crack-free, and bad values are refused by name.
+
+use std::path::Path;
+use terraclip::frame::stats::Passes;
+use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
+use terraclip::render::{RenderOptions, Session};
+use terraclip::scene::Scene;
+use terraclip::synthesis::source::{refine, Spec};
+use terraclip::synthesis::{synthesize, NoiseTable};
+use terraclip::terrain::procedural::Procedural;
+
+fn base(size: usize, levels: usize) -> Pyramid {
+    let map = Procedural::new(20041, size, size).generate().unwrap();
+    Pyramid::from_heightmap(map, Filter::default(), levels)
+}
+
+fn spec(levels: usize) -> Spec {
+    Spec {
+        levels,
+        roughness: None,
+        seed: 5,
+    }
+}
+
+fn bits(l: &PyramidLevel, [x0, y0, x1, y1]: [i64; 4]) -> Vec<(u32, bool)> {
+    let c = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
+    let mut out = Vec::new();
+    for y in c(y0, l.height)..=c(y1, l.height) {
+        for x in c(x0, l.width)..=c(x1, l.width) {
+            let i = y * l.width + x;
+            out.push((l.data[i].to_bits(), l.nodata[i]));
+        }
+    }
+    out
+}
+
+/// The synthesised levels made whole are the study's chain: level k is
+/// `synthesize` of level k + 1 with the k-th amplitude, from the map's own
+/// finest level up.
+#[test]
+fn whole_levels_are_the_studys_synthesis() {
+    let (p, how) = refine(base(129, 4), &spec(2), Path::new("test"), u64::MAX).unwrap();
+    assert!(
+        how.measured && how.roughness > 0.0 && how.detail > 0.0,
+        "{how:?}"
+    );
+    assert_eq!(how.amplitudes.len(), 2);
+    let p = p.whole().unwrap();
+    assert_eq!(p.finer_levels(), 2);
+    assert_eq!(p.levels.len(), 6);
+    assert_eq!([p.levels[0].width, p.levels[1].width], [513, 257]);
+    let t = NoiseTable::new(5);
+    let one = synthesize(&p.levels[2], &t, 1, how.amplitudes[0]);
+    let two = synthesize(&one, &t, 2, how.amplitudes[1]);
+    assert!(bits(&p.levels[1], [0, 0, 256, 256]) == bits(&one, [0, 0, 256, 256]));
+    assert!(bits(&p.levels[0], [0, 0, 512, 512]) == bits(&two, [0, 0, 512, 512]));
+    // Whole, each level's range is its own.
+    let (lo, hi) = two
+        .data
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    assert_eq!([p.levels[0].min, p.levels[0].max], [lo, hi]);
+    // The height ramp keeps the map's.
+    assert_eq!(p.height_range(), [p.levels[2].min, p.levels[2].max]);
+}
+
+/// Windows that walk across the map, with a budget small enough that
+/// levels wait and tiles are evicted behind them: whatever is ready under
+/// each window is the whole levels' bits. Walked twice: with a window per
+/// level, nested as a clipmap's, and with the finest level's alone, whose
+/// tiles then find the coarser samples they read only by what they ask for.
+#[test]
+fn tiles_made_in_any_order_are_the_whole_levels_bits() {
+    let whole = refine(base(129, 4), &spec(2), Path::new("test"), u64::MAX)
+        .unwrap()
+        .0
+        .whole()
+        .unwrap();
+    for drawn in [5, 1] {
+        let (mut tiled, _) = refine(base(129, 4), &spec(2), Path::new("test"), 10_000).unwrap();
+        let (mut evicted, mut waited, mut made) = (0, 0, 0);
+        for step in 0..40i64 {
+            // Level l's window: 63 texels wide, centred on a point moving
+            // diagonally across the finest level.
+            let c = [290 + 5 * step, 480 - 9 * step];
+            let windows: Vec<[i64; 4]> = (0..drawn)
+                .map(|l| {
+                    let (x, y) = (c[0] >> l, c[1] >> l);
+                    [x - 31, y - 31, x + 31, y + 31]
+                })
+                .collect();
+            let built = tiled.build_around(&windows);
+            evicted += built.evicted;
+            made += built.tiles;
+            waited += built.ready.start;
+            for l in built.ready.clone() {
+                // Every tile under the window, whole.
+                let t = tiled.tile_side().unwrap() as i64;
+                let [x0, y0, x1, y1] = windows[l].map(|v| v.max(0));
+                let tiles = [
+                    x0 / t * t,
+                    y0 / t * t,
+                    x1 / t * t + t - 1,
+                    y1 / t * t + t - 1,
+                ];
+                assert!(
+                    bits(&tiled.levels[l], tiles) == bits(&whole.levels[l], tiles),
+                    "{drawn} windows, step {step}, level {l}"
+                );
+            }
+        }
+        assert!(evicted > 0 && made > 20, "{evicted} {made}");
+        assert!(drawn == 1 || waited > 0, "{waited}");
+    }
+}
+
+/// The noise continues the map: its amplitude is the map's finest detail
+/// times 2^(−H k), and a roughness given by hand is used as given.
+#[test]
+fn amplitudes_continue_the_maps_detail() {
+    let (_, how) = refine(base(129, 4), &spec(3), Path::new("test"), 1).unwrap();
+    for (k, a) in how.amplitudes.iter().enumerate() {
+        let want = how.detail * 2f64.powf(-how.roughness * (k + 1) as f64);
+        assert!((a / want - 1.0).abs() < 1e-12, "level {k}: {a} vs {want}");
+    }
+    let given = Spec {
+        roughness: Some(0.5),
+        ..spec(1)
+    };
+    let (_, how) = refine(base(129, 4), &given, Path::new("test"), 1).unwrap();
+    assert!(!how.measured && how.roughness == 0.5);
+    let want = how.detail / std::f64::consts::SQRT_2;
+    assert!((how.amplitudes[0] / want - 1.0).abs() < 1e-15);
+}
+
+/// A close-to-the-ground scene over a procedural map with two synthesised
+/// levels: the clipmap draws the two levels finer than the map, the same
+/// frames on one thread as on two, a walk never cracks, and the images
+/// differ from the map's without synthesis.
+fn close_scene(levels: Option<usize>) -> Scene {
+    let mut s = Scene::default_scene();
+    s.terrain.procedural = Some(Procedural::new(7, 257, 257));
+    s.terrain.cell_size = Some(terraclip::scene::CellSize::Square(16.0));
+    s.terrain.synthesis = levels.map(spec);
+    s.camera.position = [2000.0, -2000.0, 400.0];
+    s.camera.look_at = Some([2600.0, -2600.0, 0.0]);
+    s.image.width = 160;
+    s.image.height = 100;
+    s
+}
+
+#[test]
+fn scenes_draw_the_synthesised_levels() {
+    let plain = close_scene(None);
+    let synth = close_scene(Some(2));
+    let render = |s: &Scene| {
+        let mut session = Session::new(s, &mut Passes::default()).unwrap();
+        let cam = s.camera();
+        let (img, stats) = session
+            .render(&cam, &RenderOptions::default(), Passes::default())
+            .unwrap();
+        (img, stats, session.world)
+    };
+    let (a, sa, wa) = render(&plain);
+    let (b, sb, wb) = render(&synth);
+    assert_eq!(wb.cell, [wa.cell[0] / 4.0, wa.cell[1] / 4.0]);
+    assert_ne!(a.rgba, b.rgba);
+    assert!(sb.triangles > 0 && sa.triangles > 0);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let (c, _, _) = one.install(|| render(&synth));
+    assert_eq!(b.rgba, c.rgba);
+    assert_eq!(
+        b.depth.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        c.depth.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+}
+
+/// Bad values are refused with the key named: too many levels, a negative
+/// roughness, and synthesis over a lazy pyramid, which cannot apply.
+#[test]
+fn bad_synthesis_values_are_clean_errors() {
+    let check = |edit: &dyn Fn(&mut Scene), want: &str| {
+        let mut s = close_scene(Some(2));
+        edit(&mut s);
+        let e = match s.validate() {
+            Err(e) => e.to_string(),
+            Ok(()) => Session::new(&s, &mut Passes::default())
+                .err()
+                .expect("refused")
+                .to_string(),
+        };
+        assert!(e.contains(want), "{e}");
+    };
+    check(
+        &|s| s.terrain.synthesis = Some(spec(5)),
+        "terrain.synthesis.levels",
+    );
+    check(
+        &|s| s.terrain.synthesis = Some(spec(0)),
+        "terrain.synthesis.levels",
+    );
+    check(
+        &|s| {
+            s.terrain.synthesis = Some(Spec {
+                roughness: Some(-0.5),
+                ..spec(1)
+            })
+        },
+        "terrain.synthesis.roughness",
+    );
+    check(
+        &|s| {
+            s.terrain.synthesis = Some(Spec {
+                roughness: Some(f64::NAN),
+                ..spec(1)
+            })
+        },
+        "terrain.synthesis.roughness",
+    );
+    check(
+        &|s| {
+            s.pyramid.lazy = true;
+            s.shading.height_range = Some([0.0, 1.0]);
+        },
+        "lazy",
+    );
+    // A flat map has no detail to continue.
+    check(
+        &|s| {
+            s.terrain.procedural = Some(Procedural {
+                amplitude: 0.0,
+                ..Procedural::new(7, 257, 257)
+            })
+        },
+        "flat",
+    );
+}
