@@ -77,7 +77,9 @@ fn every_golden_scene_matches_the_cpu() {
 
 /// The six 100-frame paths the README reports (strips and footprints,
 /// normal maps, wires, shadows, morph), and two over packs decoded tile by
-/// tile as the path goes (lossless and at E = 1 m), each frame compared, the GPU's
+/// tile as the path goes (lossless and at E = 1 m), and two over synthesised
+/// levels (made a tile at a time close to the ground, and whole under
+/// shadows), each frame compared, the GPU's
 /// toroids updated only by dirty rectangles. The uploads are a property of
 /// the path, not of the image size, so the `default` path's counts are the
 /// README's exactly: 64,538 texels rewritten where full uploads would write
@@ -95,6 +97,8 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
         "morph-on",
         "pack-lossless",
         "pack-lossy",
+        "synthesis-close",
+        "synthesis-shadows",
     ] {
         let mut scene = Scene::load(Path::new(&format!("golden/{name}.toml"))).unwrap();
         scene

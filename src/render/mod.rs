@@ -59,6 +59,7 @@ impl Image {
     }
 }
 
+use crate::synthesis::source::Continuation;
 use image::ImageEncoder;
 
 /// Statistics of one render (the CLI's JSON keys).
@@ -98,6 +99,10 @@ pub struct RenderStats {
     /// `scalar`, `portable` or `avx2+fma`); absent for the GPU back end.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub raster_path: Option<&'static str>,
+    /// With `[terrain] synthesis`: how the synthesised levels continue the
+    /// map (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub synthesis: Option<Continuation>,
 }
 
 /// A lazy pyramid after a frame.
@@ -215,6 +220,8 @@ pub struct Session {
     pub lod: Box<dyn Lod>,
     /// What the last frame's LOD update changed.
     pub last_update: LodUpdate,
+    /// With `[terrain] synthesis`: how its levels continue the map.
+    pub synthesis: Option<Continuation>,
     effects: Effects,
     params: ShadeParams,
     size: [u32; 2],
@@ -315,6 +322,7 @@ impl Session {
             let p = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));
             (p, world)
         };
+        let mut continuation = None;
         let (pyramid, world) = match &scene.terrain.synthesis {
             None => (pyramid, world),
             Some(spec) => {
@@ -323,14 +331,14 @@ impl Session {
                     None => "procedural terrain".into(),
                 };
                 let bad = |r| Error::value("terrain.synthesis", r);
-                let (p, _) = passes
-                    .time("synthesis", || {
-                        crate::synthesis::source::refine(pyramid, spec, &path, scene.pyramid.budget)
-                    })
-                    .map_err(bad)?;
-                let p = if incremental {
-                    p
-                } else {
+                let p = passes.time("synthesis", || -> Result<Pyramid> {
+                    let budget = scene.pyramid.budget;
+                    let (p, how) = crate::synthesis::source::refine(pyramid, spec, &path, budget)
+                        .map_err(bad)?;
+                    continuation = Some(how);
+                    if incremental {
+                        return Ok(p);
+                    }
                     let l = &p.levels[0];
                     if (l.width as u64) * (l.height as u64) > terrain::MAX_TEXELS {
                         return Err(bad(format!(
@@ -340,8 +348,8 @@ impl Session {
                             terrain::MAX_TEXELS
                         )));
                     }
-                    passes.time("pyramid", || p.whole())?
-                };
+                    p.whole()
+                })?;
                 let scale = (1u64 << spec.levels) as f64;
                 let cell = [world.cell[0] / scale, world.cell[1] / scale];
                 (p, WorldMap { cell, ..world })
@@ -355,6 +363,7 @@ impl Session {
             filter,
             lod,
             last_update: LodUpdate::default(),
+            synthesis: continuation,
             effects,
             params: scene.shading.clone(),
             size: [scene.image.width, scene.image.height],
@@ -448,6 +457,7 @@ pub fn stats(
         normals_computed,
         lazy: None,
         raster_path: None,
+        synthesis: None,
     }
 }
 
@@ -472,6 +482,7 @@ impl Session {
         let mut s = stats(&frame, Backend::Cpu.name(), raster, passes);
         s.lazy = self.lazy_frame(clip.as_ref());
         s.raster_path = Some(opts.path.label());
+        s.synthesis = self.synthesis.clone();
         Ok((image, s))
     }
 

@@ -63,7 +63,7 @@ impl Spec {
 
 /// How the synthesised levels continue the map: its finest detail, the
 /// roughness, and each level's noise amplitude, finest level last.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct Continuation {
     /// RMS of the map's finest level less its coarser level's subdivision.
     pub detail: f64,
