@@ -249,10 +249,11 @@ impl Pyramid {
         if k == 0 || fr.len() != k {
             return Err("no finer level to add".into());
         }
-        // Each level the vertex-centred half of the one before.
+        // Each finer level's vertices the coarser one's and the midpoints
+        // between them, down to this pyramid's finest level.
         let mut sizes = fs.clone();
         sizes.extend(self.levels.iter().map(|l| [l.width, l.height]));
-        if let Some(w) = sizes
+        if let Some(w) = sizes[..=k]
             .windows(2)
             .find(|w| w[0] != [2 * w[1][0] - 1, 2 * w[1][1] - 1])
         {
