@@ -285,3 +285,53 @@ fn synthesis_over_a_lossless_pack_draws_as_over_the_map() {
     }
     assert!(evicted > 0);
 }
+
+/// `height_at` and `ray_hit` answer on the synthesised surface: at the
+/// finest level's vertices under the camera (inside its ring, where nothing
+/// morphs) they give the synthesised samples, to the f32 rounding of
+/// camera-relative positions, not the map's own heights there.
+#[test]
+fn heights_and_rays_answer_on_the_synthesised_surface() {
+    let scene = Scene::load(Path::new("golden/synthesis-close.toml")).unwrap();
+    let mut session = Session::new(&scene, &mut Passes::default()).unwrap();
+    let mut cam = scene.camera();
+    // Straight down, so the finest level's interior is in view.
+    cam.target = cam.eye + glam::DVec3::new(0.1, 0.0, -50.0);
+    let surface = session.surface(&cam).unwrap();
+    let world = session.world;
+    let fine = &session.pyramid().levels[0];
+    let coarse = &session.pyramid().levels[3];
+    let g = world.to_grid(cam.eye);
+    let (mut checked, mut off_map) = (0, 0);
+    for dy in -6i64..=6 {
+        for dx in -6i64..=6 {
+            let (c, r) = (g[0].round() as i64 + dx, g[1].round() as i64 + dy);
+            let p = world.to_world(c as f64, r as f64, 0.0);
+            let want = fine.data[r as usize * fine.width + c as usize] as f64;
+            let got = surface.height_at(p.x, p.y).expect("drawn");
+            assert!((got - want).abs() < 1e-3, "({c}, {r}): {got} vs {want}");
+            let hit = surface
+                .ray_hit(p + glam::DVec3::new(0.0, 0.0, 500.0), glam::DVec3::NEG_Z)
+                .expect("hit");
+            assert!(
+                (hit.point.z - want).abs() < 1e-3,
+                "({c}, {r}) ray: {:?}",
+                hit.point
+            );
+            // The map's own height at the same point (bilinear in its cells).
+            let (mc, mr) = (c as f64 / 8.0, r as f64 / 8.0);
+            let m = |x: f64, y: f64| coarse.get_clamped(x as i64, y as i64) as f64;
+            let (fx, fy) = (mc.fract(), mr.fract());
+            let (x0, y0) = (mc.floor(), mr.floor());
+            let map = (m(x0, y0) * (1.0 - fx) + m(x0 + 1.0, y0) * fx) * (1.0 - fy)
+                + (m(x0, y0 + 1.0) * (1.0 - fx) + m(x0 + 1.0, y0 + 1.0) * fx) * fy;
+            off_map += usize::from((got - map).abs() > 0.01);
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 169);
+    assert!(
+        off_map > 150,
+        "{off_map} of {checked} differ from the map's own surface"
+    );
+}
