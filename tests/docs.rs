@@ -200,6 +200,14 @@ fn every_json_key_is_in_docs_cli_md() {
                 vec!["render", &lazy, "--size", "48x27", "-o", &png],
                 vec![
                     "render",
+                    "golden/synthesis-close.toml",
+                    "--size",
+                    "48x27",
+                    "-o",
+                    &png,
+                ],
+                vec![
+                    "render",
                     "--heightmap",
                     &render_pack,
                     "--size",
