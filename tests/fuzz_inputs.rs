@@ -211,6 +211,7 @@ procedural = { seed = 5, width = 65, height = 65, amplitude = 500.0, wavelength 
 cell_size = 10.0
 vertical_scale = 1.0
 origin = [1000.0, -2000.0]
+synthesis = { levels = 2, roughness = 0.8, seed = 3 }
 [pyramid]
 filter = "sinc-blackman"
 [lod]
@@ -329,7 +330,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("seed 4 (tif)", 544),
     ("asc", 147),
     ("raw f32 + sidecar", 334),
-    ("scene", 106),
+    ("scene", 97),
     ("geographic tif", 617),
     ("pack", 2),
 ];
