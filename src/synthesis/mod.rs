@@ -4,11 +4,12 @@
 //!
 //! This is the synthesis stage's arithmetic: the noise table, the
 //! subdivision, and the amplitude each finer level gets from the map's own
-//! measured detail. Every operation is f64 over f32 samples in a fixed
-//! order with no fused operations, and the table comes from integer
-//! arithmetic only (no `exp`, `ln` or `cos`, whose last bits differ between
-//! C libraries), so a synthesised level is the same bits on any machine and
-//! any thread count.
+//! measured detail. A synthesised sample is f32 arithmetic in a fixed
+//! order with no fused operations and none of the shapes lavapipe's shader
+//! compiler rewrites (docs/raster-rules.md), so a GPU pass can repeat it
+//! bit for bit; the table comes from integer arithmetic only (no `exp`,
+//! `ln` or `cos`, whose last bits differ between C libraries), so a
+//! synthesised level is the same bits on any machine and any thread count.
 
 use crate::pyramid::PyramidLevel;
 use rayon::prelude::*;
@@ -18,16 +19,17 @@ pub mod source;
 /// Side of the wrapped noise table.
 pub const TABLE: usize = 64;
 
-/// How much a level's table coordinates are stretched: slightly more than
-/// one, so that the texel a coordinate lands on slips by one every 97
+/// How much a level's table coordinates are stretched, as a fraction: by
+/// 98/97, so that the texel a coordinate lands on slips by one every 97
 /// texels and the table's period of 64 does not repeat on the terrain (GPU
-/// Gems 2 scales its noise coordinates for the same reason).
-const STRETCH: f64 = 1.0 + 1.0 / 97.0;
+/// Gems 2 scales its noise coordinates for the same reason). Integer
+/// division, not a float product, so that x = 97 lands on 98 everywhere.
+pub const STRETCH: [i64; 2] = [98, 97];
 
 /// A wrapped table of standard Gaussian values made from a seed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NoiseTable {
-    values: Vec<f64>,
+    values: Vec<f32>,
 }
 
 /// SplitMix64: the next state and its output.
@@ -51,7 +53,7 @@ impl NoiseTable {
                 for _ in 0..12 {
                     s += (splitmix(&mut state) >> 11) as f64 / (1u64 << 53) as f64;
                 }
-                s - 6.0
+                (s - 6.0) as f32
             })
             .collect();
         NoiseTable { values }
@@ -60,15 +62,23 @@ impl NoiseTable {
     /// The noise at texel (x, y) of the `k`-th synthesised level (k ≥ 1):
     /// the table read at stretched coordinates, offset per level so that
     /// the levels' noise is not the same pattern at different scales.
-    pub fn at(&self, k: usize, x: i64, y: i64) -> f64 {
-        let off = 17 * k as i64;
-        let u = ((x as f64 * STRETCH).floor() as i64 + off).rem_euclid(TABLE as i64) as usize;
-        let v = ((y as f64 * STRETCH).floor() as i64 + 3 * off).rem_euclid(TABLE as i64) as usize;
+    pub fn at(&self, k: usize, x: i64, y: i64) -> f32 {
+        let [u, v] = Self::cell(k, x, y);
         self.values[v * TABLE + u]
     }
 
+    /// The table cell [`NoiseTable::at`] reads: each coordinate stretched
+    /// by [`STRETCH`] (rounded down), offset by 17 k (x) or 51 k (y), and
+    /// wrapped.
+    pub fn cell(k: usize, x: i64, y: i64) -> [usize; 2] {
+        let off = 17 * k as i64;
+        let [a, b] = STRETCH;
+        let wrap = |v: i64, o: i64| ((a * v).div_euclid(b) + o).rem_euclid(TABLE as i64) as usize;
+        [wrap(x, off), wrap(y, 3 * off)]
+    }
+
     /// Every value, row-major.
-    pub fn values(&self) -> &[f64] {
+    pub fn values(&self) -> &[f32] {
         &self.values
     }
 }
@@ -76,8 +86,10 @@ impl NoiseTable {
 /// The four-point interpolation (−1/16, 9/16, 9/16, −1/16) at the midpoint
 /// of `v1` and `v2`: LH04's subdivision, the pack's predictor.
 #[inline]
-fn four_point(v0: f64, v1: f64, v2: f64, v3: f64) -> f64 {
-    (-v0 + 9.0 * v1 + 9.0 * v2 - v3) / 16.0
+fn four_point(v0: f32, v1: f32, v2: f32, v3: f32) -> f32 {
+    // 9 (v1 + v2), not 9 v1 + 9 v2: lavapipe factors the second into the
+    // first, so only this shape is the same bits on both sides.
+    (9.0 * (v1 + v2) - (v0 + v3)) / 16.0
 }
 
 /// The interpolatory subdivision of `coarse`: a level of 2w − 1 × 2h − 1
@@ -85,8 +97,8 @@ fn four_point(v0: f64, v1: f64, v2: f64, v3: f64) -> f64 {
 /// of them along a row or a column their four-point interpolation, and the
 /// centres the mean of the row and column interpolations there (indices
 /// clamped at the edges). A sample is no-data where any coarse sample its
-/// stencil reads is. Returns the heights as f64 and the no-data flags.
-pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
+/// stencil reads is. Returns the heights and the no-data flags.
+pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f32>, Vec<bool>) {
     subdivide_window(coarse, [0, 0, 2 * coarse.width - 1, 2 * coarse.height - 1])
 }
 
@@ -98,14 +110,14 @@ pub fn subdivide(coarse: &PyramidLevel) -> (Vec<f64>, Vec<bool>) {
 pub fn subdivide_window(
     coarse: &PyramidLevel,
     [x0, y0, w, h]: [usize; 4],
-) -> (Vec<f64>, Vec<bool>) {
+) -> (Vec<f32>, Vec<bool>) {
     let (cw, ch) = (coarse.width, coarse.height);
     let c = |i: i64, j: i64| {
         let (i, j) = (
             i.clamp(0, cw as i64 - 1) as usize,
             j.clamp(0, ch as i64 - 1) as usize,
         );
-        (coarse.data[j * cw + i] as f64, coarse.nodata[j * cw + i])
+        (coarse.data[j * cw + i], coarse.nodata[j * cw + i])
     };
     // The four-point stencil along a row (dx = 1) or a column through
     // coarse (i, j) and the next one.
@@ -122,17 +134,17 @@ pub fn subdivide_window(
     let (i0, j0) = ((x0 / 2) as i64, (y0 / 2) as i64);
     let (i1, j1) = (((x0 + w - 1) / 2) as i64, ((y0 + h - 1) / 2) as i64);
     let ni = (i1 - i0 + 1) as usize;
-    let row_mid: Vec<(f64, bool)> = (j0 - 1..=j1 + 2)
+    let row_mid: Vec<(f32, bool)> = (j0 - 1..=j1 + 2)
         .flat_map(|j| (i0..=i1).map(move |i| (i, j)))
         .map(|(i, j)| line(i, j, 1, 0))
         .collect();
-    let col_mid: Vec<(f64, bool)> = (j0..=j1)
+    let col_mid: Vec<(f32, bool)> = (j0..=j1)
         .flat_map(|j| (i0 - 1..=i1 + 2).map(move |i| (i, j)))
         .map(|(i, j)| line(i, j, 0, 1))
         .collect();
     let rm = |i: i64, j: i64| row_mid[(j - j0 + 1) as usize * ni + (i - i0) as usize];
     let cm = |i: i64, j: i64| col_mid[(j - j0) as usize * (ni + 3) + (i - i0 + 1) as usize];
-    let mut data = vec![0f64; w * h];
+    let mut data = vec![0f32; w * h];
     let mut nodata = vec![false; w * h];
     data.par_chunks_mut(w.max(1))
         .zip(nodata.par_chunks_mut(w.max(1)))
@@ -156,7 +168,7 @@ pub fn subdivide_window(
                         let a = four_point(r[0].0, r[1].0, r[2].0, r[3].0);
                         let b = four_point(q[0].0, q[1].0, q[2].0, q[3].0);
                         let n = r.iter().chain(&q).any(|v| v.1);
-                        ((a + b) / 2.0, n)
+                        ((a + b) * 0.5, n)
                     }
                 };
                 *out = v;
@@ -193,7 +205,7 @@ pub fn detail_rms_window(
             if fine.nodata[f] || nd[u] {
                 continue;
             }
-            let d = fine.data[f] as f64 - up[u];
+            let d = fine.data[f] as f64 - up[u] as f64;
             sum += d * d;
             count += 1;
         }
@@ -306,7 +318,7 @@ pub fn detail_gain(fine: &PyramidLevel, coarse: &PyramidLevel, radius: usize) ->
         for x in 0..w.min(uw) {
             let (f, u) = (y * w + x, y * uw + x);
             if !(fine.nodata[f] || nd[u]) {
-                let d = fine.data[f] as f64 - up[u];
+                let d = fine.data[f] as f64 - up[u] as f64;
                 sq[f] = d * d;
                 n[f] = 1.0;
             }
@@ -387,18 +399,19 @@ pub fn synthesize_window(
     rect: [usize; 4],
 ) -> (Vec<f32>, Vec<bool>) {
     let [x0, y0, w, _] = rect;
-    let (up, nodata) = subdivide_window(coarse, rect);
+    let (mut data, nodata) = subdivide_window(coarse, rect);
     let cw = coarse.width;
-    let mut data = vec![0f32; up.len()];
+    let a = amp as f32;
     data.par_chunks_mut(w.max(1))
-        .zip(up.par_chunks(w.max(1)))
         .enumerate()
-        .for_each(|(r, (row, u))| {
+        .for_each(|(r, row)| {
             let y = y0 + r;
-            for (o, (d, &v)) in row.iter_mut().zip(u).enumerate() {
+            for (o, d) in row.iter_mut().enumerate() {
                 let x = x0 + o;
-                let g = gain.map_or(1.0, |g| g[(y / 2) * cw + x / 2]);
-                *d = (v + amp * g * table.at(k, x as i64, y as i64)) as f32;
+                // The amplitude is f32 before it meets the noise, as a
+                // shader receives it.
+                let a = gain.map_or(a, |g| (amp * g[(y / 2) * cw + x / 2]) as f32);
+                *d += a * table.at(k, x as i64, y as i64);
             }
         });
     (data, nodata)

@@ -14,7 +14,7 @@ fn the_noise_table_is_the_seeds_and_gaussian() {
     let t = NoiseTable::new(7);
     assert_eq!(t, NoiseTable::new(7));
     assert_ne!(t, NoiseTable::new(8));
-    let v = t.values();
+    let v: Vec<f64> = t.values().iter().map(|&x| x as f64).collect();
     assert_eq!(v.len(), TABLE * TABLE);
     let n = v.len() as f64;
     let mean = v.iter().sum::<f64>() / n;
@@ -28,6 +28,11 @@ fn the_noise_table_is_the_seeds_and_gaussian() {
         .filter(|&x| t.at(1, x, 5) == t.at(1, x + 64, 5))
         .count();
     assert!(same < 1000, "{same}");
+    // The stretch is 98/97 rounded down, in integers: 97 lands on 98, -1
+    // on -2; offsets 17 k and 51 k; wrapped to the table.
+    assert_eq!(NoiseTable::cell(0, 97, 0), [98 % 64, 0]);
+    assert_eq!(NoiseTable::cell(0, -1, 96), [62, 96 % 64]);
+    assert_eq!(NoiseTable::cell(1, 0, 0), [17, 51]);
 }
 
 /// The coarse samples come through bit for bit, and the four-point scheme
@@ -43,11 +48,11 @@ fn subdivision_keeps_the_coarse_samples_and_reproduces_a_plane() {
         for x in 0..w {
             // Interior only: clamping bends the plane at the edges.
             if (2..w - 3).contains(&x) && (2..13 - 3).contains(&y) {
-                let want = 1.5 * x as f64 + 2.5 * y as f64;
+                let want = 1.5 * x as f32 + 2.5 * y as f32;
                 assert_eq!(up[y * w + x], want, "({x}, {y})");
             }
             if x % 2 == 0 && y % 2 == 0 {
-                assert_eq!(up[y * w + x], c.data[(y / 2) * 9 + x / 2] as f64);
+                assert_eq!(up[y * w + x], c.data[(y / 2) * 9 + x / 2]);
             }
         }
     }
@@ -82,7 +87,9 @@ fn synthesis_adds_noise_of_the_asked_amplitude_on_any_thread_count() {
     let t = NoiseTable::new(20041);
     let amp = amplitude(8.0, 1.0, 2);
     assert_eq!(amp, 2.0);
-    let table_rms = (t.values().iter().map(|v| v * v).sum::<f64>() / (TABLE * TABLE) as f64).sqrt();
+    let table_rms = (t.values().iter().map(|&v| v as f64 * v as f64).sum::<f64>()
+        / (TABLE * TABLE) as f64)
+        .sqrt();
     let s = synthesize(&c, &t, 1, amp);
     let (up, _) = subdivide(&c);
     let n = up.len() as f64;
@@ -90,7 +97,7 @@ fn synthesis_adds_noise_of_the_asked_amplitude_on_any_thread_count() {
         .data
         .iter()
         .zip(&up)
-        .map(|(&a, &b)| (a as f64 - b) * (a as f64 - b))
+        .map(|(&a, &b)| (a as f64 - b as f64) * (a as f64 - b as f64))
         .sum::<f64>()
         / n)
         .sqrt();
