@@ -120,7 +120,7 @@ fn synthesis_adds_noise_of_the_asked_amplitude_on_any_thread_count() {
 fn detail_is_measured_against_the_subdivision() {
     let c = level(33, 33, |x, y| (x * x + y) as f32);
     let (up, _) = subdivide(&c);
-    let fine = level(65, 65, |x, y| up[y * 65 + x] as f32);
+    let fine = level(65, 65, |x, y| up[y * 65 + x]);
     assert_eq!(detail_rms(&fine, &c), Some(0.0));
     let s = synthesize(&c, &NoiseTable::new(3), 1, 2.0);
     let d = detail_rms(&s, &c).unwrap();
@@ -147,7 +147,7 @@ fn local_gain_follows_the_maps_detail() {
     // (no detail), the right half adds ±3 on alternate samples.
     let (up, _) = subdivide(&c);
     let fine = level(65, 65, |x, y| {
-        let v = up[y * 65 + x] as f32;
+        let v = up[y * 65 + x];
         if x > 40 {
             v + if (x + y) % 2 == 0 { 3.0 } else { -3.0 }
         } else {
