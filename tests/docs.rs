@@ -220,14 +220,19 @@ fn every_json_key_is_in_docs_cli_md() {
         ("golden", vec![vec!["golden", &golden]]),
         (
             "check-gpu",
-            vec![vec![
-                "check-gpu",
-                &lazy,
-                "--frames",
-                "2",
-                "--out",
-                &tradeoff_out,
-            ]],
+            vec![
+                vec!["check-gpu", &lazy, "--frames", "2", "--out", &tradeoff_out],
+                vec![
+                    "check-gpu",
+                    "golden/synthesis-close.toml",
+                    "--update",
+                    "gpu",
+                    "--frames",
+                    "2",
+                    "--out",
+                    &tradeoff_out,
+                ],
+            ],
         ),
         (
             "bench",

@@ -125,6 +125,47 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
         if name == "default" {
             assert_eq!((res.texels_uploaded, res.texels_full), (64_538, 2_750_517));
         }
+        if name.starts_with("synthesis") {
+            assert!(res.texels.is_none() && res.texels_made.is_none());
+        }
+    }
+}
+
+/// `[gpu] update = "gpu"` on both synthesis goldens over 100-frame paths:
+/// the GPU makes the synthesised levels' texels itself, and after every
+/// update every level's toroid (heights and slopes) equals the CPU's bit
+/// for bit on lavapipe, as do the images. The CPU then uploads only the
+/// map's own levels: the counts are the path's, not the image's
+/// (`synthesis-close` uploads 238,938 texels with `update = "cpu"`, of
+/// which the GPU now makes all but 30,926).
+#[test]
+fn the_gpu_update_pass_makes_the_cpus_texels() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    for (name, uploaded) in [("synthesis-close", 30_926), ("synthesis-shadows", 16_076)] {
+        let mut scene = Scene::load(Path::new(&format!("golden/{name}.toml"))).unwrap();
+        scene.gpu.update = terraclip::scene::GpuUpdate::Gpu;
+        scene
+            .apply(&terraclip::scene::Overrides {
+                size: Some([192, 108]),
+                ..Default::default()
+            })
+            .unwrap();
+        let res = parity::check(&mut r, &scene, name, 100, 37.0, &out(), exact).unwrap();
+        eprintln!("{name} gpu update: {res:?}");
+        assert!(res.pass, "{name}: {res:?}");
+        let t = res.texels.expect("texels checked");
+        assert!(t.checked > 1_000_000, "{t:?}");
+        assert!(res.texels_made.unwrap() > 50_000, "{res:?}");
+        if exact {
+            assert_eq!((t.differ, t.max_ulp), (0, 0), "{name}");
+            assert_eq!(
+                (res.diff.colour_px_differ, res.diff.depth_px_differ),
+                (0, 0),
+                "{name}"
+            );
+            assert_eq!(res.texels_uploaded, uploaded, "{name}");
+        }
     }
 }
 

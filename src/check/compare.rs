@@ -149,6 +149,20 @@ pub struct PixelPair {
 }
 
 /// Depths are ≥ 0, so their bit patterns order like the values.
+/// Units in the last place between two f32 of any sign: their distance on
+/// the line of representable values (0 and −0 are 0 apart).
+pub fn ulp_distance(a: f32, b: f32) -> u64 {
+    let ordered = |v: f32| {
+        let b = v.to_bits();
+        if b >> 31 == 1 {
+            -((b & 0x7fff_ffff) as i64)
+        } else {
+            b as i64
+        }
+    };
+    (ordered(a) - ordered(b)).unsigned_abs()
+}
+
 fn depth_ulp(p: f32, q: f32) -> u32 {
     let ulp = (p.to_bits() as i64 - q.to_bits() as i64).unsigned_abs();
     ulp.min(u32::MAX as u64) as u32
@@ -468,6 +482,19 @@ pub fn enclosed(bg: &[bool], w: usize, h: usize) -> Vec<bool> {
 
 #[cfg(test)]
 mod tests {
+
+    /// ULPs across zero count both sides' steps; equal values and ±0 are 0.
+    #[test]
+    fn ulp_distance_spans_signs() {
+        use super::ulp_distance;
+        assert_eq!(ulp_distance(1.0, 1.0), 0);
+        assert_eq!(ulp_distance(0.0, -0.0), 0);
+        assert_eq!(ulp_distance(1.0, f32::from_bits(1.0f32.to_bits() + 3)), 3);
+        let tiny = f32::from_bits(1);
+        assert_eq!(ulp_distance(tiny, -tiny), 2);
+        assert_eq!(ulp_distance(-2.0, -2.0f32.next_down()), 1);
+    }
+
     use super::*;
 
     fn flat(w: u32, h: u32) -> Image {

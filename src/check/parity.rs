@@ -40,6 +40,15 @@ pub struct SceneParity {
     /// levels joining while the images still match.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub levels_unbuilt: Option<Vec<usize>>,
+    /// With `[gpu] update = "gpu"`: every level's toroid texels read back
+    /// after each update and compared with the CPU's, before any image
+    /// (absent otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texels: Option<crate::gpu::TexelCheck>,
+    /// With `[gpu] update = "gpu"`: texels the GPU's update pass made
+    /// over the path, none of them uploaded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texels_made: Option<u64>,
 }
 
 /// Draws `session`'s frame for `camera` on the GPU (the clipmap path when the
@@ -82,6 +91,10 @@ fn draw_session(
                 meshes: &c.meshes,
                 world: &session.world,
                 update,
+                synthesis: session
+                    .synthesis
+                    .as_ref()
+                    .filter(|_| session.gpu_update == crate::scene::GpuUpdate::Gpu),
             }),
         ),
         _ => r.draw(frame, None),
@@ -131,11 +144,22 @@ pub fn check(
     let mut pass = true;
     let (mut uploaded, mut full) = (0, 0);
     let mut unbuilt: Option<Vec<usize>> = None;
+    let on_gpu = gpu.gpu_update == crate::scene::GpuUpdate::Gpu;
+    let (mut texels, mut made) = (
+        on_gpu.then(crate::gpu::TexelCheck::default),
+        on_gpu.then_some(0u64),
+    );
     for i in 0..frames.max(1) {
         let cam = path_camera(&base, i, step);
         let (frame, _) = cpu.frame(&cam, &mut passes)?;
         let (want, _) = render::draw(&frame, &opts, &mut passes);
         let (gframe, got, lazy) = gpu_frame(r, &mut gpu, &cam, &mut passes)?;
+        if let (Some(t), Some(cm)) = (texels.as_mut(), gpu.lod.clipmap()) {
+            t.merge(&r.check_toroids(cm, &gpu.world)?);
+        }
+        if let Some(m) = made.as_mut() {
+            *m += r.texels_made();
+        }
         if let Some(l) = lazy {
             unbuilt.get_or_insert_with(Vec::new).push(l.levels_unbuilt);
         }
@@ -183,6 +207,8 @@ pub fn check(
         write_atomic(&out.join(format!("{name}-diff.png")), &diff.png()?)?;
     }
     total.unmatched_example = worst.as_ref().and_then(|w| w.1.unmatched_example);
+    // Where the images must be exact, so must the texels they came from.
+    pass &= !exact || texels.is_none_or(|t| t.differ == 0);
     Ok(SceneParity {
         scene: name.to_string(),
         diff: total,
@@ -193,6 +219,8 @@ pub fn check(
         texels_uploaded: uploaded,
         texels_full: full,
         levels_unbuilt: unbuilt,
+        texels,
+        texels_made: made,
     })
 }
 

@@ -22,6 +22,11 @@ pub struct Args {
     /// Camera step per frame along the path, metres.
     #[arg(long, default_value_t = 37.0)]
     pub step: f64,
+    /// Who fills the GPU's toroids, for every scene (`[gpu] update`):
+    /// cpu uploads the CPU's texels, gpu makes synthesised levels' on the
+    /// GPU and compares every level's texels after each update.
+    #[arg(long, value_enum, hide_possible_values = true)]
+    pub update: Option<terraclip::scene::GpuUpdate>,
     #[arg(long)]
     pub json: bool,
 }
@@ -54,7 +59,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let mut r = GpuRenderer::new(gpu);
     let mut results = vec![];
     for (name, scene) in &list {
-        let res = parity::check(&mut r, scene, name, a.frames, a.step, &a.out, exact)?;
+        let mut scene = scene.clone();
+        if let Some(u) = a.update {
+            scene.gpu.update = u;
+        }
+        let res = parity::check(&mut r, &scene, name, a.frames, a.step, &a.out, exact)?;
         if !a.json {
             println!(
                 "{:<6} {:<22} {:>3} frame(s)  colour {} px  depth {} px  max channel {}  max depth {} ulp  shifted {} px  unmatched {} px",

@@ -16,6 +16,7 @@
 pub(crate) mod device;
 mod textures;
 pub(crate) mod uniforms;
+mod update;
 
 pub use device::{Api, Gpu};
 
@@ -48,6 +49,39 @@ pub struct ClipDraw<'a> {
     pub world: &'a WorldMap,
     /// The update since the last draw; `None` uploads every level in full.
     pub update: Option<&'a UpdateStats>,
+    /// With `[gpu] update = "gpu"` and synthesised levels: how they are
+    /// made, for the GPU's update pass to make them itself.
+    pub synthesis: Option<&'a crate::synthesis::source::Continuation>,
+}
+
+/// The GPU's toroid texels against the CPU's ([`GpuRenderer::check_toroids`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct TexelCheck {
+    /// Texel values compared (heights and slope components).
+    pub checked: u64,
+    /// Those whose bits differ.
+    pub differ: u64,
+    /// The largest difference in units in the last place.
+    pub max_ulp: u64,
+}
+
+impl TexelCheck {
+    fn add(&mut self, cpu: &[f32], gpu: &[f32]) {
+        for (&a, &b) in cpu.iter().zip(gpu) {
+            self.checked += 1;
+            if a.to_bits() != b.to_bits() {
+                self.differ += 1;
+                self.max_ulp = self.max_ulp.max(crate::check::compare::ulp_distance(a, b));
+            }
+        }
+    }
+
+    /// Sums `o` into this one.
+    pub fn merge(&mut self, o: &TexelCheck) {
+        self.checked += o.checked;
+        self.differ += o.differ;
+        self.max_ulp = self.max_ulp.max(o.max_ulp);
+    }
 }
 
 /// What `GpuRenderer::draw_list` builds: per-draw uniforms with the index
@@ -70,6 +104,10 @@ pub struct GpuRenderer {
     pipeline_layout: wgpu::PipelineLayout,
     pipelines: HashMap<Effects, wgpu::RenderPipeline>,
     toroid: Option<ToroidTextures>,
+    /// The update pass, made when a scene first asks for it.
+    update: Option<update::UpdatePass>,
+    /// Toroid texels the update pass made in the last clipmap draw.
+    texels_made: u64,
     /// Static footprint corners for the current n: (n, buffer, range per shape).
     footprints: Option<(i64, wgpu::Buffer, ShapeRanges)>,
 }
@@ -143,6 +181,8 @@ impl GpuRenderer {
             pipeline_layout,
             pipelines: HashMap::new(),
             toroid: None,
+            update: None,
+            texels_made: 0,
             footprints: None,
         }
     }
@@ -156,6 +196,47 @@ impl GpuRenderer {
     /// Texels the last clipmap draw wrote to the toroidal textures.
     pub fn texels_uploaded(&self) -> u64 {
         self.toroid.as_ref().map_or(0, |t| t.texels_written)
+    }
+
+    /// Texels the GPU's update pass made in the last clipmap draw
+    /// (`[gpu] update = "gpu"`), none of them uploaded.
+    pub fn texels_made(&self) -> u64 {
+        self.texels_made
+    }
+
+    /// Every level's toroid texels (heights, and slopes where they are in
+    /// use) read back and compared with the CPU's for `cm`: what
+    /// `check-gpu` asks after each update, before any image.
+    pub fn check_toroids(&self, cm: &Clipmap, world: &WorldMap) -> Result<TexelCheck> {
+        let Some(tt) = &self.toroid else {
+            return Ok(TexelCheck::default());
+        };
+        let n = cm.n() as usize;
+        let heights = textures::read_layers(&self.gpu, &tt.heights, 4)?;
+        let slopes = if tt.has_gradients() {
+            Some(textures::read_layers(&self.gpu, &tt.gradients, 8)?)
+        } else {
+            None
+        };
+        let mut c = TexelCheck::default();
+        let all = crate::clipmap::toroid::TexRect {
+            x0: 0,
+            y0: 0,
+            x1: n,
+            y1: n,
+        };
+        for (l, lv) in cm.levels().iter().enumerate() {
+            if lv.heights.origin().is_none() {
+                continue;
+            }
+            let gpu = &heights[l * n * n..(l + 1) * n * n];
+            c.add(lv.heights.texels(), gpu);
+            if let (Some(s), Some(cpu)) = (&slopes, textures::slopes(cm, world, l, &all)) {
+                let cpu: Vec<f32> = cpu.iter().flatten().copied().collect();
+                c.add(&cpu, &s[2 * l * n * n..2 * (l + 1) * n * n]);
+            }
+        }
+        Ok(c)
     }
 
     /// The pipeline for an effect set: effects are override constants, so an
@@ -271,7 +352,20 @@ impl GpuRenderer {
             let tt = self
                 .toroid
                 .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
-            tt.sync(&self.gpu, cm, c.world, c.update, need_gradients);
+            // The synthesised levels the GPU makes itself: those whose
+            // windows read only their coarser level's (the rest uploaded).
+            let k = c.synthesis.map_or(0, |_| cm.pyramid().finer_levels());
+            let on_gpu: Vec<bool> = (0..cm.levels().len())
+                .map(|l| l < k && update::UpdatePass::covered(cm, l, need_gradients))
+                .collect();
+            let jobs = tt.sync(&self.gpu, cm, c.world, c.update, need_gradients, &on_gpu);
+            self.texels_made = 0;
+            if let (Some(how), false) = (c.synthesis, jobs.is_empty()) {
+                let pass = self
+                    .update
+                    .get_or_insert_with(|| update::UpdatePass::new(&self.gpu));
+                self.texels_made = pass.run(&self.gpu, tt, cm, c.world, how, &jobs);
+            }
             self.footprint_buffer(cm);
             let n = cm.n();
             for mesh in c.meshes {

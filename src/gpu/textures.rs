@@ -12,6 +12,28 @@ use crate::shade::shadows::Lightmap;
 use crate::terrain::world::WorldMap;
 
 fn texture(gpu: &Gpu, size: [u32; 3], format: wgpu::TextureFormat, label: &str) -> wgpu::Texture {
+    texture_for(gpu, size, format, label, wgpu::TextureUsages::empty())
+}
+
+/// A toroid layer stack: also written by the GPU's update pass and read
+/// back by `check-gpu`.
+pub(super) fn toroid_texture(
+    gpu: &Gpu,
+    size: [u32; 3],
+    format: wgpu::TextureFormat,
+    label: &str,
+) -> wgpu::Texture {
+    let extra = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
+    texture_for(gpu, size, format, label, extra)
+}
+
+fn texture_for(
+    gpu: &Gpu,
+    size: [u32; 3],
+    format: wgpu::TextureFormat,
+    label: &str,
+    extra: wgpu::TextureUsages,
+) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
@@ -23,7 +45,7 @@ fn texture(gpu: &Gpu, size: [u32; 3], format: wgpu::TextureFormat, label: &str) 
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | extra,
         view_formats: &[],
     })
 }
@@ -71,8 +93,8 @@ impl ToroidTextures {
     /// Placeholders for draws that use no clipmap.
     pub fn empty(gpu: &Gpu) -> Self {
         ToroidTextures {
-            heights: texture(gpu, [1, 1, 1], wgpu::TextureFormat::R32Float, "heights"),
-            gradients: texture(gpu, [1, 1, 1], wgpu::TextureFormat::Rg32Float, "slopes"),
+            heights: toroid_texture(gpu, [1, 1, 1], wgpu::TextureFormat::R32Float, "heights"),
+            gradients: toroid_texture(gpu, [1, 1, 1], wgpu::TextureFormat::Rg32Float, "slopes"),
             n: 0,
             layers: 0,
             has_gradients: false,
@@ -82,7 +104,8 @@ impl ToroidTextures {
 
     /// Brings the textures up to date with `cm`: only the update's dirty
     /// rectangles when the textures already mirror the previous state,
-    /// everything otherwise.
+    /// everything otherwise. The levels `on_gpu` marks are not uploaded:
+    /// their rectangles come back, for the GPU's update pass.
     pub fn sync(
         &mut self,
         gpu: &Gpu,
@@ -90,13 +113,14 @@ impl ToroidTextures {
         world: &WorldMap,
         update: Option<&UpdateStats>,
         need_gradients: bool,
-    ) {
+        on_gpu: &[bool],
+    ) -> Vec<(usize, TexRects)> {
         let n = cm.n() as usize;
         let layers = cm.levels().len();
         let fresh = self.n != n || self.layers != layers;
         if fresh {
             let size = [n as u32, n as u32, layers as u32];
-            self.heights = texture(gpu, size, wgpu::TextureFormat::R32Float, "heights");
+            self.heights = toroid_texture(gpu, size, wgpu::TextureFormat::R32Float, "heights");
             self.n = n;
             self.layers = layers;
             self.has_gradients = false;
@@ -104,7 +128,7 @@ impl ToroidTextures {
         let full_gradients = need_gradients && !self.has_gradients;
         if full_gradients {
             let size = [n as u32, n as u32, layers as u32];
-            self.gradients = texture(gpu, size, wgpu::TextureFormat::Rg32Float, "slopes");
+            self.gradients = toroid_texture(gpu, size, wgpu::TextureFormat::Rg32Float, "slopes");
             self.has_gradients = true;
         }
         let all = TexRect {
@@ -114,55 +138,81 @@ impl ToroidTextures {
             y1: n,
         };
         self.texels_written = 0;
-        for (l, lv) in cm.levels().iter().enumerate() {
+        let mut jobs = Vec::new();
+        for l in 0..cm.levels().len() {
             let rects: TexRects = match update {
                 Some(u) if !fresh => u.rects_per_level.get(l).copied().unwrap_or_default(),
                 _ => TexRects::one(all),
             };
-            let heights = lv.heights.texels();
-            for r in &rects {
-                let (w, h) = ((r.x1 - r.x0) as u32, (r.y1 - r.y0) as u32);
-                let data: &[f32] = &heights[r.y0 * n + r.x0..];
-                let rows = (h as usize - 1) * n + w as usize;
-                write(
-                    gpu,
-                    &self.heights,
-                    [r.x0 as u32, r.y0 as u32, l as u32],
-                    [w, h],
-                    bytemuck::cast_slice(&data[..rows]),
-                    4 * n as u32,
-                );
-                self.texels_written += r.area() as u64;
-            }
-            if self.has_gradients {
-                let grads = if full_gradients {
+            if on_gpu.get(l).copied().unwrap_or(false) {
+                // New slopes need the whole layer; its heights come out the
+                // same where they were already right.
+                let r = if full_gradients {
                     TexRects::one(all)
                 } else {
                     rects
                 };
-                for r in &grads {
-                    self.write_gradients(gpu, cm, world, l, r);
+                if !r.is_empty() {
+                    jobs.push((l, r));
                 }
+                continue;
+            }
+            let grads = if full_gradients {
+                TexRects::one(all)
+            } else {
+                rects
+            };
+            self.upload(gpu, cm, world, l, &rects, &grads);
+        }
+        jobs
+    }
+
+    /// Uploads the CPU's heights of level `l` over `rects`, and its slopes
+    /// over `grads` where slopes are in use.
+    pub fn upload(
+        &mut self,
+        gpu: &Gpu,
+        cm: &Clipmap,
+        world: &WorldMap,
+        l: usize,
+        rects: &TexRects,
+        grads: &TexRects,
+    ) {
+        let n = self.n;
+        let heights = cm.levels()[l].heights.texels();
+        for r in rects {
+            let (w, h) = ((r.x1 - r.x0) as u32, (r.y1 - r.y0) as u32);
+            let data: &[f32] = &heights[r.y0 * n + r.x0..];
+            let rows = (h as usize - 1) * n + w as usize;
+            write(
+                gpu,
+                &self.heights,
+                [r.x0 as u32, r.y0 as u32, l as u32],
+                [w, h],
+                bytemuck::cast_slice(&data[..rows]),
+                4 * n as u32,
+            );
+            self.texels_written += r.area() as u64;
+        }
+        if self.has_gradients {
+            for r in grads {
+                self.write_gradients(gpu, cm, world, l, r);
             }
         }
     }
 
+    /// Whether the slopes texture is in use.
+    pub fn has_gradients(&self) -> bool {
+        self.has_gradients
+    }
+
     /// Slopes of level `l` over toroid rectangle `r`, by the CPU's own
-    /// `normals::gradient` (f64 scale factors the shader cannot repeat).
+    /// `normals::gradient` (its f64 scale factors, rounded to f32, are all
+    /// a shader needs to repeat it).
     fn write_gradients(&self, gpu: &Gpu, cm: &Clipmap, world: &WorldMap, l: usize, r: &TexRect) {
-        let lv = &cm.levels()[l];
-        let Some(o) = lv.heights.origin() else { return };
-        let p = &cm.pyramid().levels[l];
-        let s = self.n;
-        let spacing = (1u64 << l) as f64;
-        let mut data = Vec::with_capacity(r.area());
-        for ty in r.y0..r.y1 {
-            let y = Toroid::<f32>::world_of(ty, o[1], s);
-            for tx in r.x0..r.x1 {
-                let x = Toroid::<f32>::world_of(tx, o[0], s);
-                data.push(normals::gradient(p, x, y, spacing, world));
-            }
-        }
+        let Some(data) = slopes(cm, world, l, r) else {
+            return;
+        };
         let w = (r.x1 - r.x0) as u32;
         write(
             gpu,
@@ -173,6 +223,86 @@ impl ToroidTextures {
             8 * w,
         );
     }
+}
+
+/// The CPU's slopes of level `l` over toroid rectangle `r` (`None` for a
+/// level with no window).
+pub(crate) fn slopes(
+    cm: &Clipmap,
+    world: &WorldMap,
+    l: usize,
+    r: &TexRect,
+) -> Option<Vec<[f32; 2]>> {
+    let o = cm.levels()[l].heights.origin()?;
+    let p = &cm.pyramid().levels[l];
+    let s = cm.n() as usize;
+    let spacing = (1u64 << l) as f64;
+    let mut data = Vec::with_capacity(r.area());
+    for ty in r.y0..r.y1 {
+        let y = Toroid::<f32>::world_of(ty, o[1], s);
+        for tx in r.x0..r.x1 {
+            let x = Toroid::<f32>::world_of(tx, o[0], s);
+            data.push(normals::gradient(p, x, y, spacing, world));
+        }
+    }
+    Some(data)
+}
+
+/// Reads back every layer of a toroid texture of `texel` bytes a texel
+/// (n × n × layers), as f32 values, layer by layer, row by row.
+pub(crate) fn read_layers(gpu: &Gpu, t: &wgpu::Texture, texel: u32) -> Result<Vec<f32>> {
+    let (w, h, layers) = (t.width(), t.height(), t.depth_or_array_layers());
+    let row = (texel * w).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+        * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("toroid readback"),
+        size: row as u64 * h as u64 * layers as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: t,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
+        },
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: layers,
+        },
+    );
+    gpu.queue.submit([enc.finish()]);
+    buf.slice(..).map_async(wgpu::MapMode::Read, |_| {});
+    gpu.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::value("gpu", format!("readback failed: {e}")))?;
+    let view = buf
+        .slice(..)
+        .get_mapped_range()
+        .map_err(|e| Error::value("gpu", format!("readback failed: {e}")))?;
+    let mut out = Vec::with_capacity((w * h * layers * texel / 4) as usize);
+    for r in 0..(h * layers) as usize {
+        let bytes = &view[r * row as usize..r * row as usize + (texel * w) as usize];
+        out.extend(
+            bytes
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])),
+        );
+    }
+    Ok(out)
 }
 
 /// Per-level images stacked vertically in one texture; `rows[l]` is level

@@ -222,6 +222,8 @@ pub struct Session {
     pub last_update: LodUpdate,
     /// With `[terrain] synthesis`: how its levels continue the map.
     pub synthesis: Option<Continuation>,
+    /// `[gpu] update`: who fills the GPU back end's toroids.
+    pub gpu_update: crate::scene::GpuUpdate,
     effects: Effects,
     params: ShadeParams,
     size: [u32; 2],
@@ -364,6 +366,7 @@ impl Session {
             lod,
             last_update: LodUpdate::default(),
             synthesis: continuation,
+            gpu_update: scene.gpu.update,
             effects,
             params: scene.shading.clone(),
             size: [scene.image.width, scene.image.height],

@@ -213,12 +213,47 @@ pub struct Scene {
     /// `[shading]`: sun, fog and material constants.
     #[serde(default)]
     pub shading: ShadeParams,
+    /// `[gpu]`: how the wgpu back end updates the clipmap.
+    #[serde(default)]
+    pub gpu: GpuSpec,
     /// Folder that relative paths are resolved against.
     #[serde(skip)]
     pub base_dir: PathBuf,
     /// Where the scene came from, for error messages.
     #[serde(skip)]
     pub origin: String,
+}
+
+crate::scene::names::named! {
+    /// Who fills the GPU's toroids: `[gpu] update`.
+    pub enum GpuUpdate ("GPU update") {
+        /// The CPU's finished texels, uploaded (the reference).
+        Cpu => "cpu",
+        /// A compute pass on the GPU for synthesised levels (GPU Gems 2
+        /// ch. 2); the map's own levels are uploaded as with `cpu`.
+        Gpu => "gpu",
+    }
+}
+
+/// The scene's `[gpu]`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GpuSpec {
+    /// `cpu` (default) or `gpu`.
+    #[serde(default = "default_update")]
+    pub update: GpuUpdate,
+}
+
+fn default_update() -> GpuUpdate {
+    GpuUpdate::Cpu
+}
+
+impl Default for GpuSpec {
+    fn default() -> Self {
+        GpuSpec {
+            update: GpuUpdate::Cpu,
+        }
+    }
 }
 
 fn default_pyramid() -> PyramidSpec {

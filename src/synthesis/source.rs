@@ -74,6 +74,8 @@ pub struct Continuation {
     /// Amplitude of synthesised level k (1 = just finer than the map) at
     /// index k − 1.
     pub amplitudes: Vec<f64>,
+    /// The noise table's seed.
+    pub seed: u64,
 }
 
 /// The synthesised levels of one map, as a [`TileSource`].
@@ -219,6 +221,7 @@ impl Synthesised {
             roughness,
             measured,
             amplitudes,
+            seed: spec.seed,
         };
         Ok((src, how))
     }
