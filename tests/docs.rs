@@ -236,15 +236,26 @@ fn every_json_key_is_in_docs_cli_md() {
         ),
         (
             "bench",
-            vec![vec![
-                "bench",
-                "--frames",
-                "1",
-                "--repeats",
-                "1",
-                "--size",
-                "32x18",
-            ]],
+            vec![
+                vec![
+                    "bench",
+                    "--frames",
+                    "1",
+                    "--repeats",
+                    "1",
+                    "--size",
+                    "32x18",
+                ],
+                vec![
+                    "bench",
+                    "golden/synthesis-close.toml",
+                    "--update",
+                    "--frames",
+                    "2",
+                    "--size",
+                    "32x18",
+                ],
+            ],
         ),
         (
             "tradeoff",

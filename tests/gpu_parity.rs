@@ -534,3 +534,24 @@ fn tolerance_mode_fails_real_defects_at_the_golden_size() {
     }
     assert!(tested >= 3, "only {tested} levels visible");
 }
+
+/// `bench --update` times a jump that makes every synthesised level's
+/// whole toroid (3 levels of 63², 11,907 texels) and a walk that makes
+/// fewer; a scene without synthesis is refused by name.
+#[test]
+fn the_update_bench_times_a_jump_and_a_walk() {
+    let Some(mut r) = renderer() else { return };
+    let scene = Scene::load(Path::new("golden/synthesis-close.toml")).unwrap();
+    let b = parity::update_bench(&mut r, &scene, 3, 37.0).unwrap();
+    assert_eq!((b.levels, b.n, b.jump.texels), (3, 63, 11_907));
+    assert!(b.walk.texels > 0 && b.walk.texels < b.jump.texels, "{b:?}");
+    for t in [&b.jump, &b.walk] {
+        assert!(
+            t.cpu_update_ms > 0.0 && t.upload_ms > 0.0 && t.gpu_pass_ms > 0.0,
+            "{t:?}"
+        );
+    }
+    let plain = Scene::load(Path::new("golden/level-tint.toml")).unwrap();
+    let e = parity::update_bench(&mut r, &plain, 3, 37.0).unwrap_err();
+    assert!(e.to_string().contains("synthesis"), "{e}");
+}

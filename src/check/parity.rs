@@ -224,6 +224,103 @@ pub fn check(
     })
 }
 
+/// One update's cost both ways ([`update_bench`]).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct UpdateTimes {
+    /// The CPU's clipmap update (every level: synthesised tiles made and
+    /// toroids filled), ms.
+    pub cpu_update_ms: f64,
+    /// Uploading the synthesised levels' rewritten texels (and slopes, when
+    /// lit), ms.
+    pub upload_ms: f64,
+    /// The GPU's update pass making the same texels, ms.
+    pub gpu_pass_ms: f64,
+    /// Synthesised-level texels rewritten.
+    pub texels: u64,
+}
+
+/// `bench --update`: the synthesised levels' update on the CPU (its
+/// update plus the upload) against the GPU's update pass.
+#[derive(Clone, Debug, Serialize)]
+pub struct UpdateBench {
+    /// The adapter's name, driver and API.
+    pub adapter: String,
+    /// Synthesised levels.
+    pub levels: usize,
+    /// Toroid side.
+    pub n: i64,
+    /// The first frame: every level rebuilt.
+    pub jump: UpdateTimes,
+    /// The walk's frames after it, each figure the median.
+    pub walk: UpdateTimes,
+    /// Frames walked after the jump.
+    pub frames: usize,
+}
+
+/// Times a jump (the first frame, every level built) and a walk of
+/// `frames` frames, `step` metres each, of a scene with synthesised
+/// levels ([`UpdateBench`]).
+pub fn update_bench(
+    r: &mut GpuRenderer,
+    scene: &Scene,
+    frames: usize,
+    step: f64,
+) -> Result<UpdateBench> {
+    let mut passes = Passes::default();
+    let mut session = Session::new(scene, &mut passes)?;
+    let Some(how) = session.synthesis.clone() else {
+        return Err(crate::Error::value(
+            "bench --update",
+            "the scene synthesises no levels ([terrain] synthesis)",
+        ));
+    };
+    r.forget_textures();
+    let base = scene.camera();
+    let mut times = Vec::new();
+    for i in 0..=frames {
+        let mut p = Passes::default();
+        let (frame, clip) = session.frame(&path_camera(&base, i, step), &mut p)?;
+        let (Some(c), Some(cm)) = (clip, session.lod.clipmap()) else {
+            return Err(crate::Error::value(
+                "bench --update",
+                "the scene has no clipmap",
+            ));
+        };
+        let slopes = frame.effects.lit() && !frame.effects.normal_map;
+        let update = (i > 0).then_some(&c.update);
+        if i == 0 {
+            // Once untimed, so the jump pays no pipeline compilation or
+            // first-use costs; then again from empty textures.
+            r.time_update(cm, &session.world, &how, None, slopes)?;
+            r.forget_textures();
+        }
+        let (upload_ms, gpu_pass_ms, texels) =
+            r.time_update(cm, &session.world, &how, update, slopes)?;
+        times.push(UpdateTimes {
+            cpu_update_ms: p.0.iter().filter(|q| q.name == "lod").map(|q| q.ms).sum(),
+            upload_ms,
+            gpu_pass_ms,
+            texels,
+        });
+    }
+    let walk = &times[1..];
+    let med = |f: fn(&UpdateTimes) -> f64| median(&walk.iter().map(f).collect::<Vec<_>>());
+    let cm = session.lod.clipmap().expect("a clipmap");
+    Ok(UpdateBench {
+        adapter: r.gpu.adapter(),
+        levels: cm.pyramid().finer_levels(),
+        n: cm.n(),
+        jump: times[0].clone(),
+        walk: UpdateTimes {
+            cpu_update_ms: med(|t| t.cpu_update_ms),
+            upload_ms: med(|t| t.upload_ms),
+            gpu_pass_ms: med(|t| t.gpu_pass_ms),
+            texels: median(&walk.iter().map(|t| t.texels as f64).collect::<Vec<_>>()) as u64,
+        },
+        frames,
+    })
+}
+
 /// `bench`: frames per second of both back ends on the same frame, warm.
 #[derive(Clone, Debug, Serialize)]
 pub struct Bench {

@@ -17,6 +17,14 @@ pub struct Args {
     /// Image size WIDTHxHEIGHT.
     #[arg(long, default_value = "1920x1080", value_parser = Overrides::parse_size)]
     pub size: [u32; 2],
+    /// Time the synthesised levels' update instead: the CPU's update and
+    /// upload against the GPU's update pass, for a jump (the first frame)
+    /// and a walk of --frames frames of --step metres.
+    #[arg(long)]
+    pub update: bool,
+    /// Metres a frame, with --update.
+    #[arg(long, default_value_t = 37.0)]
+    pub step: f64,
     #[arg(long)]
     pub json: bool,
 }
@@ -33,6 +41,20 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         ..Default::default()
     })?;
     let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
+    if a.update {
+        let b = parity::update_bench(&mut r, &s, a.frames, a.step)?;
+        if a.json {
+            println!("{}", serde_json::to_value(&b)?);
+        } else {
+            for (what, t) in [("jump", &b.jump), ("walk", &b.walk)] {
+                println!(
+                    "{what}: {} texels of {} synthesised levels (n = {}): CPU update {:.3} ms + upload {:.3} ms, GPU pass {:.3} ms ({})",
+                    t.texels, b.levels, b.n, t.cpu_update_ms, t.upload_ms, t.gpu_pass_ms, b.adapter
+                );
+            }
+        }
+        return Ok(());
+    }
     let b = parity::bench(&mut r, &s, a.frames, a.repeats)?;
     if a.json {
         println!("{}", serde_json::to_value(&b)?);

@@ -204,6 +204,51 @@ impl GpuRenderer {
         self.texels_made
     }
 
+    /// Times the update of `cm`'s synthesised levels both ways, after
+    /// bringing the map's own levels up to date: the CPU's texels (and
+    /// slopes, with `slopes`) uploaded over the update's rectangles, and
+    /// the GPU's update pass making them; each waited for. Returns
+    /// (upload ms, pass ms, texels).
+    pub fn time_update(
+        &mut self,
+        cm: &Clipmap,
+        world: &WorldMap,
+        how: &crate::synthesis::source::Continuation,
+        update: Option<&UpdateStats>,
+        slopes: bool,
+    ) -> Result<(f64, f64, u64)> {
+        let wait = |gpu: &Gpu| {
+            gpu.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map(|_| ())
+                .map_err(|e| Error::value("gpu", format!("wait failed: {e}")))
+        };
+        let k = cm.pyramid().finer_levels();
+        let on_gpu: Vec<bool> = (0..cm.levels().len())
+            .map(|l| l < k && update::UpdatePass::covered(cm, l, slopes))
+            .collect();
+        let tt = self
+            .toroid
+            .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
+        let jobs = tt.sync(&self.gpu, cm, world, update, slopes, &on_gpu);
+        self.gpu.queue.submit([]);
+        wait(&self.gpu)?;
+        let t = std::time::Instant::now();
+        for (l, rects) in &jobs {
+            tt.upload(&self.gpu, cm, world, *l, rects, rects);
+        }
+        self.gpu.queue.submit([]);
+        wait(&self.gpu)?;
+        let upload = t.elapsed().as_secs_f64() * 1e3;
+        let pass = self
+            .update
+            .get_or_insert_with(|| update::UpdatePass::new(&self.gpu));
+        let t = std::time::Instant::now();
+        let made = pass.run(&self.gpu, tt, cm, world, how, &jobs);
+        wait(&self.gpu)?;
+        Ok((upload, t.elapsed().as_secs_f64() * 1e3, made))
+    }
+
     /// Every level's toroid texels (heights, and slopes where they are in
     /// use) read back and compared with the CPU's for `cm`: what
     /// `check-gpu` asks after each update, before any image.
