@@ -332,29 +332,21 @@ impl Session {
                     Some(f) => scene.base_dir.join(f),
                     None => "procedural terrain".into(),
                 };
-                let bad = |r| Error::value("terrain.synthesis", r);
-                let p = passes.time("synthesis", || -> Result<Pyramid> {
-                    let budget = scene.pyramid.budget;
-                    let (p, how) = crate::synthesis::source::refine(pyramid, spec, &path, budget)
-                        .map_err(bad)?;
-                    continuation = Some(how);
-                    if incremental {
-                        return Ok(p);
-                    }
-                    let l = &p.levels[0];
-                    if (l.width as u64) * (l.height as u64) > terrain::MAX_TEXELS {
-                        return Err(bad(format!(
-                            "its finest level of {}×{} samples is over the {} held whole for a scheme other than the clipmap or for shadows or normal-map; ask for fewer levels",
-                            l.width,
-                            l.height,
-                            terrain::MAX_TEXELS
-                        )));
-                    }
-                    p.whole()
-                })?;
-                let scale = (1u64 << spec.levels) as f64;
-                let cell = [world.cell[0] / scale, world.cell[1] / scale];
-                (p, WorldMap { cell, ..world })
+                let budget = scene.pyramid.budget;
+                let (p, world, how) = passes
+                    .time("synthesis", || {
+                        crate::synthesis::source::apply(
+                            pyramid,
+                            world,
+                            spec,
+                            &path,
+                            budget,
+                            !incremental,
+                        )
+                    })
+                    .map_err(|r| Error::value("terrain.synthesis", r))?;
+                continuation = Some(how);
+                (p, world)
             }
         };
         // The scheme holds the only reference, so a lazy pyramid grows in

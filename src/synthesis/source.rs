@@ -12,6 +12,7 @@ use super::{
     amplitude, detail_rms_window, roughness_between, synthesize_window, NoiseTable, MAX_ROUGHNESS,
 };
 use crate::pyramid::{Pyramid, PyramidLevel, TileSource};
+use crate::terrain::world::WorldMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -274,6 +275,39 @@ impl TileSource for Synthesised {
         let amp = self.amplitudes[k - 1];
         Ok(synthesize_window(coarse, &self.table, k, amp, None, rect))
     }
+}
+
+/// A scene's pyramid and placement with `spec`'s levels before the map's:
+/// made a tile at a time as [`refine`] makes them, or, with `whole`, made
+/// whole for the schemes and effects that read whole levels (up to
+/// [`crate::terrain::MAX_TEXELS`] samples); the world's cell shrinks by
+/// 2^levels.
+pub fn apply(
+    base: Pyramid,
+    world: WorldMap,
+    spec: &Spec,
+    path: &Path,
+    budget: u64,
+    whole: bool,
+) -> Result<(Pyramid, WorldMap, Continuation), String> {
+    let (p, how) = refine(base, spec, path, budget)?;
+    let p = if whole {
+        let l = &p.levels[0];
+        if (l.width as u64) * (l.height as u64) > crate::terrain::MAX_TEXELS {
+            return Err(format!(
+                "its finest level of {}×{} samples is over the {} held whole for a scheme other than the clipmap or for shadows or normal-map; ask for fewer levels",
+                l.width,
+                l.height,
+                crate::terrain::MAX_TEXELS
+            ));
+        }
+        p.whole().map_err(|e| e.to_string())?
+    } else {
+        p
+    };
+    let scale = (1u64 << spec.levels) as f64;
+    let cell = [world.cell[0] / scale, world.cell[1] / scale];
+    Ok((p, WorldMap { cell, ..world }, how))
 }
 
 /// `base` with `spec.levels` synthesised levels before its own, made a
