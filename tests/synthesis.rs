@@ -233,6 +233,16 @@ fn bad_synthesis_values_are_clean_errors() {
         },
         "lazy",
     );
+    // Shadows read the finest level whole: 2049² three levels down is
+    // 16,385², just over the 2^28 samples held whole.
+    check(
+        &|s| {
+            s.terrain.procedural = Some(Procedural::new(7, 2049, 2049));
+            s.terrain.synthesis = Some(spec(3));
+            s.effects.push(terraclip::scene::Effect::Shadows);
+        },
+        "held whole",
+    );
     // A flat map has no detail to continue.
     check(
         &|s| {
