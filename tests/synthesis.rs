@@ -345,3 +345,58 @@ fn heights_and_rays_answer_on_the_synthesised_surface() {
         "{off_map} of {checked} differ from the map's own surface"
     );
 }
+
+/// A map with too few levels to measure its roughness is refused, and
+/// with a roughness given it needs only the two its detail is measured
+/// over.
+#[test]
+fn measuring_needs_the_maps_levels() {
+    let tiny = || base(3, 4);
+    assert_eq!(tiny().levels.len(), 2);
+    let e = refine(tiny(), &spec(1), Path::new("tiny"), 1).unwrap_err();
+    assert!(e.contains("2 levels") && e.contains("needs 3"), "{e}");
+    let given = Spec {
+        roughness: Some(0.5),
+        ..spec(1)
+    };
+    let (p, _) = refine(tiny(), &given, Path::new("tiny"), 1).unwrap();
+    assert_eq!(p.levels[0].width, 5);
+}
+
+/// A pack larger than the measuring window is measured in its central
+/// 1024², decoded for the purpose: the detail and roughness are those of
+/// the map's own levels over that window, bit for bit (a lossless pack).
+#[test]
+fn a_large_pack_is_measured_in_its_central_window() {
+    use terraclip::pack::reader::PackReader;
+    use terraclip::pack::{file, Packed};
+    let map = Procedural::new(31, 1537, 1281).generate().unwrap();
+    let levels = Pyramid::build(&map, Filter::default(), usize::MAX).levels;
+    let (packed, _) = Packed::encode(&levels, 0.0, 128, map.lattice);
+    let path = std::env::temp_dir().join(format!("terraclip-synth-{}.tcz", std::process::id()));
+    file::write(
+        &path,
+        &packed,
+        map.cell_size,
+        &Filter::default().name(),
+        "test",
+    )
+    .unwrap();
+    let reader = PackReader::open(&path).unwrap();
+    let decoded = Pyramid::decoded(std::sync::Arc::new(reader), Filter::default(), 1).unwrap();
+    let (_, how) = refine(decoded, &spec(1), &path, 1).unwrap();
+    let _ = std::fs::remove_file(&path);
+    // The central 1024² of level 0, and level 1's samples under it.
+    let r0 = [(1537 - 1024) / 2, (1281 - 1024) / 2, 1024, 1024];
+    let r1 = [r0[0] / 2, r0[1] / 2, 512, 512];
+    let d0 = terraclip::synthesis::detail_rms_window(&levels[0], &levels[1], r0).unwrap();
+    let d1 = terraclip::synthesis::detail_rms_window(&levels[1], &levels[2], r1).unwrap();
+    assert_eq!(how.detail.to_bits(), d0.to_bits(), "{} vs {d0}", how.detail);
+    assert_eq!(
+        how.roughness,
+        terraclip::synthesis::roughness_between(d0, d1).unwrap()
+    );
+    // Not the whole map's.
+    let whole = terraclip::synthesis::detail_rms(&levels[0], &levels[1]).unwrap();
+    assert_ne!(whole, d0);
+}
