@@ -196,12 +196,13 @@ impl UpdatePass {
             let sx = (world.vertical_scale / (2.0 * spacing * world.cell[0])) as f32;
             let sy = (world.vertical_scale / (2.0 * spacing * world.cell[1])) as f32;
             let (cv, fv) = (layer(&tt.heights, l + 1), layer(&tt.heights, l));
+            let own;
             let gv = if slopes {
-                layer(&tt.gradients, l)
+                own = layer(&tt.gradients, l);
+                &own
             } else {
-                layer(&self.no_slopes, 0)
+                &no_slopes
             };
-            let gv = if slopes { &gv } else { &no_slopes };
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("update level"),
                 timestamp_writes: None,
