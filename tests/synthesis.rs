@@ -370,7 +370,9 @@ fn measuring_needs_the_maps_levels() {
 fn a_large_pack_is_measured_in_its_central_window() {
     use terraclip::pack::reader::PackReader;
     use terraclip::pack::{file, Packed};
-    let map = Procedural::new(31, 1537, 1281).generate().unwrap();
+    // Even sides: level 0's last column and row lie past level 1's
+    // subdivision (2 · 769 − 1 = 1537 of 1538), and are left out.
+    let map = Procedural::new(31, 1538, 1282).generate().unwrap();
     let levels = Pyramid::build(&map, Filter::default(), usize::MAX).levels;
     let (packed, _) = Packed::encode(&levels, 0.0, 128, map.lattice);
     let path = std::env::temp_dir().join(format!("terraclip-synth-{}.tcz", std::process::id()));
@@ -388,6 +390,7 @@ fn a_large_pack_is_measured_in_its_central_window() {
     let _ = std::fs::remove_file(&path);
     // The central 1024² of level 0, and level 1's samples under it.
     let r0 = [(1537 - 1024) / 2, (1281 - 1024) / 2, 1024, 1024];
+    assert_eq!([levels[1].width, levels[1].height], [769, 641]);
     let r1 = [r0[0] / 2, r0[1] / 2, 512, 512];
     let d0 = terraclip::synthesis::detail_rms_window(&levels[0], &levels[1], r0).unwrap();
     let d1 = terraclip::synthesis::detail_rms_window(&levels[1], &levels[2], r1).unwrap();
