@@ -82,13 +82,15 @@ fn tiles_made_in_any_order_are_the_whole_levels_bits() {
         .0
         .whole()
         .unwrap();
-    for drawn in [5, 1] {
+    // East, then west from the east edge, so both sides of a tile's reads
+    // are first needed when the coarser tiles they reach are missing.
+    for (drawn, x0, dx) in [(5, 290, 5), (1, 290, 5), (1, 500, -5)] {
         let (mut tiled, _) = refine(base(129, 4), &spec(2), Path::new("test"), 10_000).unwrap();
         let (mut evicted, mut waited, mut made) = (0, 0, 0);
         for step in 0..40i64 {
             // Level l's window: 63 texels wide, centred on a point moving
             // diagonally across the finest level.
-            let c = [290 + 5 * step, 480 - 9 * step];
+            let c = [x0 + dx * step, 480 - 9 * step];
             let windows: Vec<[i64; 4]> = (0..drawn)
                 .map(|l| {
                     let (x, y) = (c[0] >> l, c[1] >> l);
@@ -395,6 +397,7 @@ fn a_large_pack_is_measured_in_its_central_window() {
     let d0 = terraclip::synthesis::detail_rms_window(&levels[0], &levels[1], r0).unwrap();
     let d1 = terraclip::synthesis::detail_rms_window(&levels[1], &levels[2], r1).unwrap();
     assert_eq!(how.detail.to_bits(), d0.to_bits(), "{} vs {d0}", how.detail);
+    assert_eq!(how.next_detail.map(f64::to_bits), Some(d1.to_bits()));
     assert_eq!(
         how.roughness,
         terraclip::synthesis::roughness_between(d0, d1).unwrap()
@@ -402,4 +405,37 @@ fn a_large_pack_is_measured_in_its_central_window() {
     // Not the whole map's.
     let whole = terraclip::synthesis::detail_rms(&levels[0], &levels[1]).unwrap();
     assert_ne!(whole, d0);
+}
+
+/// A synthesised level's height bounds, before any tile is made: the
+/// map's range widened per level by 2.25 r / 8 (the four-point overshoot
+/// of a centre) plus six times the amplitude (the table's reach), times
+/// 1.001 plus 1 mm for rounding; exactly that, and they hold for every
+/// sample once made.
+#[test]
+fn synthesised_levels_have_bounds_that_hold() {
+    let (tiled, how) = refine(base(129, 4), &spec(3), Path::new("test"), 1).unwrap();
+    let whole = refine(base(129, 4), &spec(3), Path::new("test"), 1)
+        .unwrap()
+        .0
+        .whole()
+        .unwrap();
+    let map = &tiled.levels[3];
+    let (mut lo, mut hi) = (map.min as f64, map.max as f64);
+    for k in 1..=3 {
+        let e = (2.25 * (hi - lo) / 8.0 + 6.0 * how.amplitudes[k - 1]) * 1.001 + 1e-3;
+        (lo, hi) = (lo - e, hi + e);
+        let (t, w) = (&tiled.levels[3 - k], &whole.levels[3 - k]);
+        assert_eq!(
+            [t.min, t.max],
+            [lo as f32, hi as f32],
+            "level {k} below the map"
+        );
+        assert!(
+            t.min <= w.min && w.max <= t.max,
+            "{k}: {:?} outside {:?}",
+            [w.min, w.max],
+            [t.min, t.max]
+        );
+    }
 }

@@ -72,6 +72,9 @@ pub struct Continuation {
     pub roughness: f64,
     /// Whether it was measured from the map (not given).
     pub measured: bool,
+    /// The same RMS one step coarser (levels 1 and 2), when the roughness
+    /// was measured from the two.
+    pub next_detail: Option<f64>,
     /// Amplitude of synthesised level k (1 = just finer than the map) at
     /// index k − 1.
     pub amplitudes: Vec<f64>,
@@ -214,6 +217,7 @@ impl Synthesised {
         };
         let how = Continuation {
             detail,
+            next_detail: next,
             roughness,
             measured,
             amplitudes,
