@@ -321,3 +321,33 @@ pub fn refine(
     let (src, how) = Synthesised::new(&mut base, spec, path)?;
     Ok((base.with_finer(Arc::new(src), budget)?, how))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pyramid::Filter;
+
+    /// What a tile reads is exactly its four-point stencils' reach: one
+    /// coarse sample before the cells it lies in and two after (clamped
+    /// by the pyramid, not here); an edge tile is made at its own size.
+    #[test]
+    fn a_tile_reads_its_stencils_and_is_its_own_size() {
+        let map = crate::terrain::procedural::Procedural::new(3, 200, 150)
+            .generate()
+            .unwrap();
+        let mut base = Pyramid::from_heightmap(map, Filter::default(), 4);
+        let spec = Spec {
+            levels: 1,
+            roughness: Some(0.5),
+            seed: 1,
+        };
+        let (s, _) = Synthesised::new(&mut base, &spec, Path::new("t")).unwrap();
+        assert_eq!(s.sizes(), vec![[399, 299]]);
+        // Tile (1, 2): fine samples 128..=255 × 256..=298.
+        assert_eq!(s.reads(0, [1, 2]), Some([63, 127, 129, 151]));
+        assert_eq!(s.reads(0, [0, 0]), Some([-1, -1, 65, 65]));
+        let (v, nd) = s.decode(0, [3, 2], &base.levels[0]).unwrap();
+        // The corner tile: 399 − 384 = 15 across, 299 − 256 = 43 down.
+        assert_eq!((v.len(), nd.len()), (15 * 43, 15 * 43));
+    }
+}
