@@ -75,8 +75,20 @@ fn every_golden_scene_matches_the_cpu() {
     }
 }
 
-/// The six 100-frame paths the README reports (strips and footprints,
-/// normal maps, wires, shadows, morph), and two over packs decoded tile by
+/// Golden scene `name` at the paths' size, 192×108.
+fn path_scene(name: &str) -> Scene {
+    let mut scene = Scene::load(Path::new(&format!("golden/{name}.toml"))).unwrap();
+    scene
+        .apply(&terraclip::scene::Overrides {
+            size: Some([192, 108]),
+            ..Default::default()
+        })
+        .unwrap();
+    scene
+}
+
+/// The ten 100-frame paths the README reports: six (strips and footprints,
+/// normal maps, wires, shadows, morph), two over packs decoded tile by
 /// tile as the path goes (lossless and at E = 1 m), and two over synthesised
 /// levels (made a tile at a time close to the ground, and whole under
 /// shadows), each frame compared, the GPU's
@@ -100,13 +112,7 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
         "synthesis-close",
         "synthesis-shadows",
     ] {
-        let mut scene = Scene::load(Path::new(&format!("golden/{name}.toml"))).unwrap();
-        scene
-            .apply(&terraclip::scene::Overrides {
-                size: Some([192, 108]),
-                ..Default::default()
-            })
-            .unwrap();
+        let scene = path_scene(name);
         let res = parity::check(&mut r, &scene, name, 100, 37.0, &out(), exact).unwrap();
         eprintln!("{name} path: {res:?}");
         assert!(res.pass, "{name}: {res:?}");
@@ -143,14 +149,8 @@ fn the_gpu_update_pass_makes_the_cpus_texels() {
     let Some(mut r) = renderer() else { return };
     let exact = r.gpu.exact_expected();
     for (name, uploaded) in [("synthesis-close", 30_926), ("synthesis-shadows", 16_076)] {
-        let mut scene = Scene::load(Path::new(&format!("golden/{name}.toml"))).unwrap();
+        let mut scene = path_scene(name);
         scene.gpu.update = terraclip::scene::GpuUpdate::Gpu;
-        scene
-            .apply(&terraclip::scene::Overrides {
-                size: Some([192, 108]),
-                ..Default::default()
-            })
-            .unwrap();
         let res = parity::check(&mut r, &scene, name, 100, 37.0, &out(), exact).unwrap();
         eprintln!("{name} gpu update: {res:?}");
         assert!(res.pass, "{name}: {res:?}");

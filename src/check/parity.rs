@@ -297,7 +297,7 @@ pub fn update_bench(
         let (upload_ms, gpu_pass_ms, texels) =
             r.time_update(cm, &session.world, &how, update, slopes)?;
         times.push(UpdateTimes {
-            cpu_update_ms: p.0.iter().filter(|q| q.name == "lod").map(|q| q.ms).sum(),
+            cpu_update_ms: crate::frame::stats::pass_ms(&p.0, &["lod"]),
             upload_ms,
             gpu_pass_ms,
             texels,

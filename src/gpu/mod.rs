@@ -223,10 +223,7 @@ impl GpuRenderer {
                 .map(|_| ())
                 .map_err(|e| Error::value("gpu", format!("wait failed: {e}")))
         };
-        let k = cm.pyramid().finer_levels();
-        let on_gpu: Vec<bool> = (0..cm.levels().len())
-            .map(|l| l < k && update::UpdatePass::covered(cm, l, slopes))
-            .collect();
+        let on_gpu = update::UpdatePass::levels(cm, slopes);
         let tt = self
             .toroid
             .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
@@ -399,10 +396,10 @@ impl GpuRenderer {
                 .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
             // The synthesised levels the GPU makes itself: those whose
             // windows read only their coarser level's (the rest uploaded).
-            let k = c.synthesis.map_or(0, |_| cm.pyramid().finer_levels());
-            let on_gpu: Vec<bool> = (0..cm.levels().len())
-                .map(|l| l < k && update::UpdatePass::covered(cm, l, need_gradients))
-                .collect();
+            let on_gpu = match c.synthesis {
+                Some(_) => update::UpdatePass::levels(cm, need_gradients),
+                None => vec![],
+            };
             let jobs = tt.sync(&self.gpu, cm, c.world, c.update, need_gradients, &on_gpu);
             self.texels_made = 0;
             if let (Some(how), false) = (c.synthesis, jobs.is_empty()) {

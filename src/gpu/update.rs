@@ -123,6 +123,15 @@ impl UpdatePass {
         }
     }
 
+    /// Per clipmap level, whether the GPU makes it: the synthesised levels
+    /// whose windows are [`UpdatePass::covered`] (the rest are uploaded).
+    pub fn levels(cm: &Clipmap, slopes: bool) -> Vec<bool> {
+        let k = cm.pyramid().finer_levels();
+        (0..cm.levels().len())
+            .map(|l| l < k && Self::covered(cm, l, slopes))
+            .collect()
+    }
+
     /// Whether level `l`'s whole window (one texel wider with slopes)
     /// reads only coarse samples inside level l + 1's window, so its
     /// toroid can be made from the coarser one's alone.
@@ -192,9 +201,7 @@ impl UpdatePass {
             let (fine, coarse) = (&cm.pyramid().levels[l], &cm.pyramid().levels[l + 1]);
             let o = cm.levels()[l].heights.origin().expect("covered");
             let k = finer - l;
-            let spacing = (1u64 << l) as f64;
-            let sx = (world.vertical_scale / (2.0 * spacing * world.cell[0])) as f32;
-            let sy = (world.vertical_scale / (2.0 * spacing * world.cell[1])) as f32;
+            let [sx, sy] = crate::shade::normals::slope_scale(world, (1u64 << l) as f64);
             let (cv, fv) = (layer(&tt.heights, l + 1), layer(&tt.heights, l));
             let own;
             let gv = if slopes {

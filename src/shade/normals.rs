@@ -11,11 +11,18 @@ use crate::terrain::world::WorldMap;
 /// `spacing` base cells apart. Y points north, i.e. toward smaller rows.
 #[inline]
 pub fn gradient(p: &PyramidLevel, x: i64, y: i64, spacing: f64, world: &WorldMap) -> [f32; 2] {
-    let sx = (world.vertical_scale / (2.0 * spacing * world.cell[0])) as f32;
-    let sy = (world.vertical_scale / (2.0 * spacing * world.cell[1])) as f32;
+    let [sx, sy] = slope_scale(world, spacing);
     let gx = (p.get_clamped(x + 1, y) - p.get_clamped(x - 1, y)) * sx;
     let gy = (p.get_clamped(x, y - 1) - p.get_clamped(x, y + 1)) * sy;
     [gx, gy]
+}
+
+/// The factors [`gradient`] multiplies its central differences by, for
+/// samples `spacing` base cells apart: computed in f64, used as f32 (what
+/// the GPU's update pass receives, so its slopes are the same bits).
+pub fn slope_scale(world: &WorldMap, spacing: f64) -> [f32; 2] {
+    let s = |cell: f64| (world.vertical_scale / (2.0 * spacing * cell)) as f32;
+    [s(world.cell[0]), s(world.cell[1])]
 }
 
 /// Unit normal of a surface with slope `g`.

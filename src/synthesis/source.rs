@@ -225,11 +225,6 @@ impl Synthesised {
         };
         Ok((src, how))
     }
-
-    /// The noise table the levels read.
-    pub fn table(&self) -> &NoiseTable {
-        &self.table
-    }
 }
 
 impl TileSource for Synthesised {
