@@ -20,6 +20,7 @@ pub mod check;
 pub mod clipmap;
 pub mod cpu;
 pub mod error;
+pub mod export;
 pub mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;

@@ -63,6 +63,10 @@ enum Cmd {
     /// (subdivision plus noise) and compare its statistics with the real
     /// map's: variogram slope, slope distribution (KS), RMSE.
     Synthesis(cli::synthesis::Args),
+    /// Write a frame (or a path of frames) for other renderers: triangles
+    /// as glTF binary, camera, reference colour (PNG) and depth (EXR and
+    /// raw f32), clipmap toroids, a manifest of hashes.
+    Export(cli::export::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -84,6 +88,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Fly(a)) => cli::fly::run(&a),
         Some(Cmd::Synthesis(a)) => cli::synthesis::run(&a),
         Some(Cmd::Diagram(a)) => cli::diagram::run(&a),
+        Some(Cmd::Export(a)) => cli::export::run(&a),
         // The main job: render the embedded default scene.
         None => cli::render::run(&cli::render::Args::main_job()),
     }

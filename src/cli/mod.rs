@@ -8,6 +8,7 @@ pub mod bench;
 pub mod check_gpu;
 pub mod cracks;
 pub mod diagram;
+pub mod export;
 pub mod fly;
 pub mod golden;
 pub mod height;

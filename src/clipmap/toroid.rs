@@ -181,6 +181,10 @@ impl<T: Copy + Default + Send + Sync> Toroid<T> {
     pub fn origin(&self) -> Option<[i64; 2]> {
         self.origin
     }
+    /// Every texel in toroid order: world cell (x, y) at [`Toroid::index`].
+    pub fn data(&self) -> &[T] {
+        &self.data
+    }
     /// Forgets the contents: the next move rewrites every texel.
     pub fn invalidate(&mut self) {
         self.origin = None;

@@ -25,7 +25,7 @@ use crate::raster::{unorm8, Path, Raster, NONE, RUN_LANES};
 use crate::scene::Effect;
 use normal_map::NormalMap;
 use rayon::prelude::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use shadows::Lightmap;
 
 /// The effects a scene listed.
@@ -63,6 +63,20 @@ impl Effects {
         }
         Ok(e)
     }
+    /// The list [`Effects::from_list`] takes back: what an export records.
+    pub fn list(&self) -> Vec<Effect> {
+        let flags = [
+            (self.lambert, Effect::Lambert),
+            (self.phong, Effect::Phong),
+            (self.fog, Effect::Fog),
+            (self.shadows, Effect::Shadows),
+            (self.normal_map, Effect::NormalMap),
+            (self.level_tint, Effect::LevelTint),
+            (self.wireframe, Effect::Wireframe),
+            (self.morph, Effect::Morph),
+        ];
+        flags.iter().filter(|f| f.0).map(|f| f.1).collect()
+    }
     /// True if any effect needs surface normals.
     pub fn lit(&self) -> bool {
         self.lambert || self.phong
@@ -74,7 +88,7 @@ impl Effects {
 }
 
 /// Effect settings (the scene's `[shading]` table).
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct ShadeParams {
     /// Sun azimuth, degrees clockwise from north, and elevation, degrees.
