@@ -555,3 +555,32 @@ fn the_update_bench_times_a_jump_and_a_walk() {
     let e = parity::update_bench(&mut r, &plain, 3, 37.0).unwrap_err();
     assert!(e.to_string().contains("synthesis"), "{e}");
 }
+
+/// Every golden scene's export (`terraclip export`), read back and drawn
+/// by the wgpu back end as a plain mesh (the vertex stage's positions and
+/// varyings from `frame.glb`, no clipmap vertex pulling), gives the
+/// exported reference: the file is the frame, on the GPU too.
+#[test]
+fn every_golden_export_drawn_as_a_plain_mesh_matches() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let scenes = terraclip::check::golden::scenes(Path::new("golden")).unwrap();
+    for p in scenes {
+        let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+        let dir = out().join(format!("export-{name}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(out()).unwrap();
+        let scene = Scene::load(&p).unwrap();
+        terraclip::export::scene(&scene, &name, None, 1, 0.0, &dir).unwrap();
+        let e = terraclip::export::read(&dir).unwrap();
+        r.forget_textures();
+        let img = r.draw(&e.frame, None).unwrap();
+        let band = compare::tie_band(
+            &terraclip::render::raster(&e.frame, terraclip::raster::Path::from_env()),
+            e.frame.effects.wireframe,
+        );
+        let d = compare::Difference::within(&e.image, &img, Some(&band));
+        eprintln!("{name}: {d:?}");
+        assert!(d.passes(exact), "{name}: {d:?}");
+    }
+}
