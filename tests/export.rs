@@ -65,3 +65,240 @@ fn every_golden_redrawn_from_its_export_is_the_reference() {
         );
     }
 }
+
+/// Replaces `name` in the export `dir` with `bytes` and updates the
+/// manifest to match, so the reader's own checks (not the hash) meet them.
+fn replace(dir: &Path, name: &str, bytes: &[u8]) {
+    std::fs::write(dir.join(name), bytes).unwrap();
+    let mpath = dir.join("manifest.json");
+    let mut m: export::Manifest = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+    let files: Vec<(String, Vec<u8>)> = m
+        .files
+        .iter()
+        .map(|e| (e.name.clone(), std::fs::read(dir.join(&e.name)).unwrap()))
+        .collect();
+    m.files = export::manifest(&m.scene, vec![], &files).files;
+    std::fs::write(&mpath, serde_json::to_vec(&m).unwrap()).unwrap();
+}
+
+/// The error reading `dir`, which must name `file` and say `why`.
+fn refused(dir: &Path, file: &str, why: &str) {
+    let e = match export::read(dir) {
+        Ok(_) => panic!("{} read without error", dir.display()),
+        Err(e) => e.to_string(),
+    };
+    assert!(e.contains(file) && e.contains(why), "{e}");
+}
+
+#[test]
+fn a_damaged_export_is_an_error_naming_the_file() {
+    let good = tmp("damaged-good");
+    export_golden("wireframe", &good);
+    let fresh = |name: &str| {
+        let d = tmp(name);
+        std::fs::create_dir_all(&d).unwrap();
+        for f in std::fs::read_dir(&good).unwrap() {
+            let f = f.unwrap();
+            std::fs::copy(f.path(), d.join(f.file_name())).unwrap();
+        }
+        assert!(export::read(&d).is_ok());
+        d
+    };
+    // One bit flipped: the hash.
+    let d = fresh("damaged-bit");
+    let mut b = std::fs::read(d.join("frame.glb")).unwrap();
+    b[100] ^= 4;
+    std::fs::write(d.join("frame.glb"), &b).unwrap();
+    refused(&d, "frame.glb", "SHA-256 differs");
+    // Cut short: the length.
+    let d = fresh("damaged-short");
+    std::fs::write(
+        d.join("depth.f32"),
+        &std::fs::read(good.join("depth.f32")).unwrap()[..1000],
+    )
+    .unwrap();
+    refused(&d, "depth.f32", "1000 bytes where manifest.json says");
+    // Gone.
+    let d = fresh("damaged-gone");
+    std::fs::remove_file(d.join("colour.png")).unwrap();
+    refused(&d, "colour.png", "No such file");
+    // Another version.
+    let d = fresh("damaged-version");
+    let m = std::fs::read_to_string(d.join("manifest.json")).unwrap();
+    std::fs::write(
+        d.join("manifest.json"),
+        m.replace("\"version\": 1", "\"version\": 7"),
+    )
+    .unwrap();
+    refused(&d, "manifest.json", "version 7");
+    // Not JSON.
+    let d = fresh("damaged-json");
+    replace(&d, "camera.json", b"{\"width\": 4");
+    refused(&d, "camera.json", "invalid JSON");
+    // A GLB whose header lies about its length, and one cut short.
+    let d = fresh("damaged-glb-length");
+    let mut b = std::fs::read(good.join("frame.glb")).unwrap();
+    b[8..12].copy_from_slice(&5u32.to_le_bytes());
+    replace(&d, "frame.glb", &b);
+    refused(&d, "frame.glb", "header says 5");
+    let d = fresh("damaged-glb-cut");
+    replace(
+        &d,
+        "frame.glb",
+        &std::fs::read(good.join("frame.glb")).unwrap()[..4000],
+    );
+    refused(&d, "frame.glb", "stated length");
+    // A well-formed GLB without a varying the effects need.
+    let d = fresh("damaged-glb-varying");
+    let e = export::read(&good).unwrap();
+    // The wireframe's two varyings come last: the layout without them.
+    let k = e.frame.layout.len();
+    let mut plain = e.frame.layout.clone();
+    (plain.bary, plain.edge) = (None, None);
+    plain.linear.truncate(k - 6);
+    let tris = export::glb::Triangles {
+        positions: e.frame.positions.clone(),
+        attrs: e
+            .frame
+            .attrs
+            .chunks(k)
+            .flat_map(|a| a[..plain.len()].to_vec())
+            .collect(),
+        levels: e.frame.mesh.levels.clone(),
+    };
+    replace(
+        &d,
+        "frame.glb",
+        &export::glb::write(&tris, &plain, serde_json::json!({})).unwrap(),
+    );
+    refused(&d, "frame.glb", "no _BARY attribute");
+    // Depth of the wrong size; colour of the wrong size.
+    let d = fresh("damaged-depth-size");
+    replace(&d, "depth.f32", &[0u8; 40]);
+    refused(&d, "depth.f32", "40 bytes");
+    let d = fresh("damaged-colour-size");
+    let small = terraclip::render::Image {
+        width: 2,
+        height: 2,
+        rgba: vec![9; 16],
+        depth: vec![],
+    };
+    replace(&d, "colour.png", &small.png().unwrap());
+    refused(&d, "colour.png", "2x2");
+    // Not a folder at all.
+    refused(&good.join("frame.glb"), "frame.glb", "not a folder");
+}
+
+#[test]
+fn an_export_of_a_path_holds_a_folder_per_frame() {
+    let dir = tmp("path");
+    let scene = Scene::load(Path::new("golden/morph-on.toml")).unwrap();
+    let w = export::scene(&scene, "morph-on", None, 3, 37.0, &dir).unwrap();
+    assert_eq!(w.frames.len(), 3);
+    // The folder names its frames rather than reading as one.
+    refused(&dir, "frame-0000", "holds 3 frames");
+    let one = tmp("path-one");
+    export::scene(&scene, "morph-on", None, 1, 37.0, &one).unwrap();
+    let first = export::read(&one).unwrap();
+    for (i, f) in w.frames.iter().enumerate() {
+        assert_eq!(f.folder, format!("frame-{i:04}"));
+        let e = export::read(&dir.join(&f.folder)).unwrap();
+        let (img, _) = draw(&e.frame, &RenderOptions::default(), &mut Passes::default());
+        assert!(
+            img.rgba == e.image.rgba && img.depth == e.image.depth,
+            "frame {i}"
+        );
+        // Frame 0 is the scene's own view; the others moved.
+        assert_eq!(e.image.rgba == first.image.rgba, i == 0, "frame {i}");
+    }
+    // The top manifest lists every file of every frame.
+    let m: export::Manifest =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(m.frames.len(), 3);
+    assert_eq!(m.files.len() + 1, w.files);
+}
+
+#[test]
+fn export_replaces_an_export_and_refuses_anything_else() {
+    let dir = tmp("replace");
+    let scene = Scene::load(Path::new("golden/wireframe.toml")).unwrap();
+    export::scene(&scene, "wireframe", None, 1, 0.0, &dir).unwrap();
+    export::scene(&scene, "wireframe", None, 2, 10.0, &dir).unwrap();
+    assert!(dir.join("frame-0001/frame.glb").is_file() && !dir.join("frame.glb").exists());
+    // A folder holding something else is left as it was.
+    let other = tmp("replace-other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("notes.txt"), "mine").unwrap();
+    let e = export::scene(&scene, "wireframe", None, 1, 0.0, &other)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("replace-other") && e.contains("not a terraclip export"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(other.join("notes.txt")).unwrap(),
+        "mine"
+    );
+    assert_eq!(std::fs::read_dir(&other).unwrap().count(), 1);
+    // No temporary folder is left beside either.
+    let left: Vec<_> = std::fs::read_dir(dir.parent().unwrap())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+/// The exported files say what they hold: the camera's matrix makes the
+/// reference's clip positions, the depth EXR equals the raw depth, and
+/// the clipmap's toroids are the scene's level heights at their origins.
+#[test]
+fn the_files_hold_what_the_manifest_says() {
+    let dir = tmp("contents");
+    let path = Path::new("golden/jacksboro-oblique.toml");
+    let scene = Scene::load(path).unwrap();
+    export::scene(&scene, "jacksboro-oblique", None, 1, 0.0, &dir).unwrap();
+    let e = export::read(&dir).unwrap();
+    assert_eq!(e.camera.depth, export::DepthConvention::terraclip());
+    assert_eq!(
+        [e.camera.width, e.camera.height],
+        [scene.image.width, scene.image.height]
+    );
+    // The f64 matrices agree with the f32 one they were rounded into.
+    let vp = glam::DMat4::from_cols_array_2d(&e.camera.projection)
+        * glam::DMat4::from_cols_array_2d(&e.camera.view);
+    for c in 0..4 {
+        for r in 0..4 {
+            assert_eq!(vp.col(c)[r] as f32, e.camera.view_proj[c][r], "({c},{r})");
+        }
+    }
+    // Toroids: each drawn level's window, read through its origin, is the
+    // pyramid's level there.
+    let mut session = terraclip::Session::new(&scene, &mut Passes::default()).unwrap();
+    session
+        .frame(&scene.camera(), &mut Passes::default())
+        .unwrap();
+    let pyr = session.pyramid();
+    assert!(!e.info.toroids.is_empty());
+    for (t, data) in e.info.toroids.iter().zip(&e.toroids) {
+        let Some([ox, oy]) = t.origin else { continue };
+        let lv = &pyr.levels[t.level];
+        let n = t.size as i64;
+        let mut checked = 0;
+        for y in oy..oy + n {
+            for x in ox..ox + n {
+                if x < 0 || y < 0 || x >= lv.width as i64 || y >= lv.height as i64 {
+                    continue;
+                }
+                let i = (y.rem_euclid(n) * n + x.rem_euclid(n)) as usize;
+                assert_eq!(
+                    data[i].to_bits(),
+                    lv.data[y as usize * lv.width + x as usize].to_bits()
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 0, "level {}", t.level);
+    }
+}
