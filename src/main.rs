@@ -67,6 +67,9 @@ enum Cmd {
     /// as glTF binary, camera, reference colour (PNG) and depth (EXR and
     /// raw f32), clipmap toroids, a manifest of hashes.
     Export(cli::export::Args),
+    /// Compare another renderer's image (and depth) of an exported frame
+    /// with the reference: exact, tiered or FLIP; non-zero exit on failure.
+    Compare(cli::compare::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -89,6 +92,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Synthesis(a)) => cli::synthesis::run(&a),
         Some(Cmd::Diagram(a)) => cli::diagram::run(&a),
         Some(Cmd::Export(a)) => cli::export::run(&a),
+        Some(Cmd::Compare(a)) => cli::compare::run(&a),
         // The main job: render the embedded default scene.
         None => cli::render::run(&cli::render::Args::main_job()),
     }

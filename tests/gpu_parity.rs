@@ -584,3 +584,43 @@ fn every_golden_export_drawn_as_a_plain_mesh_matches() {
         assert!(d.passes(exact), "{name}: {d:?}");
     }
 }
+
+/// `compare`'s exact mode on what an outside renderer would hand it:
+/// lavapipe's own image and depth of every golden scene (the clipmap drawn
+/// from its toroidal textures), as a PNG and raw f32 files, against the
+/// scene's export.
+#[test]
+fn lavapipes_image_of_every_golden_passes_compare() {
+    use terraclip::check::outside::{self, Mode};
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let mode = if exact { Mode::Exact } else { Mode::Tiered };
+    for p in terraclip::check::golden::scenes(Path::new("golden")).unwrap() {
+        let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+        let dir = out().join(format!("compare-{name}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(out()).unwrap();
+        let scene = Scene::load(&p).unwrap();
+        terraclip::export::scene(&scene, &name, None, 1, 0.0, &dir).unwrap();
+        let (img, _) = parity::render(&mut r, &scene).unwrap();
+        let (png, f32s) = (
+            out().join(format!("{name}-gpu.png")),
+            out().join(format!("{name}-gpu.f32")),
+        );
+        std::fs::write(&png, img.png().unwrap()).unwrap();
+        std::fs::write(
+            &f32s,
+            img.depth
+                .iter()
+                .flat_map(|z| z.to_le_bytes())
+                .collect::<Vec<u8>>(),
+        )
+        .unwrap();
+        let o = outside::run(&dir, &png, Some(&f32s), mode, None).unwrap();
+        eprintln!(
+            "{name}: {} {} colour, {} depth px differ",
+            o.mode, o.colour_px_differ, o.depth_px_differ
+        );
+        assert!(o.pass && o.depth_compared, "{name}: {o:?}");
+    }
+}

@@ -131,6 +131,19 @@ pub struct Difference {
     pub size_mismatch: bool,
 }
 
+/// How one pixel compares in tolerance mode (see [`TOLERANCE_CHANNEL`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tier {
+    /// Within a step of colour and the depth tolerance.
+    Same,
+    /// Matched only by a neighbour: an edge one pixel over.
+    Shifted,
+    /// Matched nowhere in its neighbourhood.
+    Unmatched,
+    /// Unmatched, and background enclosed by surface on one side.
+    Hole,
+}
+
 /// One pixel as both back ends drew it (`a` is the reference).
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct PixelPair {
@@ -189,6 +202,12 @@ impl Difference {
     /// not "same" outside it in `outside_band_px`, which tolerance mode
     /// allows none of. Without a band every such pixel is outside.
     pub fn within(a: &Image, b: &Image, band: Option<&[bool]>) -> Difference {
+        Difference::tiers(a, b, band).0
+    }
+
+    /// [`Difference::within`], and each pixel's [`Tier`] (empty when the
+    /// images are not comparable): what `compare`'s error mask shows.
+    pub fn tiers(a: &Image, b: &Image, band: Option<&[bool]>) -> (Difference, Vec<Tier>) {
         let mut d = Difference::default();
         let (w, h) = (a.width as usize, a.height as usize);
         let px = w * h;
@@ -207,8 +226,9 @@ impl Difference {
             d.colour_px_differ = all;
             d.depth_px_differ = all;
             d.unmatched_px = all;
-            return d;
+            return (d, vec![]);
         }
+        let mut tier = vec![Tier::Same; px];
         let colour = channels(&a.rgba, &b.rgba, 4);
         d.colour_px_differ = colour.px_differ;
         d.max_channel_diff = colour.max;
@@ -296,6 +316,7 @@ impl Difference {
                 if same(i, px, py) {
                     continue;
                 }
+                tier[i] = Tier::Shifted;
                 // No band: no pixel may differ beyond "same".
                 if !band.is_some_and(|band| band.get(i).copied().unwrap_or(false)) {
                     d.outside_band_px += 1;
@@ -304,10 +325,14 @@ impl Difference {
                     d.shifted_px += 1;
                 } else {
                     d.unmatched_px += 1;
+                    tier[i] = Tier::Unmatched;
                     if let Some((ha, hb)) = &holes {
                         let hole_a = ha[i] && b.depth[i] < 1.0;
                         let hole_b = hb[i] && a.depth[i] < 1.0;
-                        d.holes_px += usize::from(hole_a || hole_b);
+                        if hole_a || hole_b {
+                            d.holes_px += 1;
+                            tier[i] = Tier::Hole;
+                        }
                     }
                     let at = |img: &Image| {
                         let rgba = [0, 1, 2, 3].map(|k| img.rgba[4 * i + k]);
@@ -325,7 +350,7 @@ impl Difference {
                 }
             }
         }
-        d
+        (d, tier)
     }
 
     /// Exact: nothing differs. Otherwise the stated tolerance: no hole,

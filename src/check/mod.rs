@@ -3,5 +3,6 @@
 
 pub mod compare;
 pub mod golden;
+pub mod outside;
 #[cfg(feature = "gpu")]
 pub mod parity;

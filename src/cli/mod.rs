@@ -6,6 +6,7 @@
 pub mod bench;
 #[cfg(feature = "gpu")]
 pub mod check_gpu;
+pub mod compare;
 pub mod cracks;
 pub mod diagram;
 pub mod export;

@@ -491,7 +491,10 @@ pub fn write_dir(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
             ));
         }
     }
-    let tmp = temp_path(dir, "")?;
+    // One temporary per call: threads of one process share its id.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let tmp = temp_path(dir, &format!("-{call}"))?;
     let result = (|| -> std::io::Result<()> {
         if tmp.exists() {
             std::fs::remove_dir_all(&tmp)?;
@@ -505,7 +508,7 @@ pub fn write_dir(dir: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
             std::fs::write(&p, bytes)?;
         }
         if dir.exists() {
-            let old = temp_path(dir, "-old").map_err(std::io::Error::other)?;
+            let old = temp_path(dir, &format!("-{call}-old")).map_err(std::io::Error::other)?;
             std::fs::rename(dir, &old)?;
             std::fs::rename(&tmp, dir)?;
             std::fs::remove_dir_all(&old)
