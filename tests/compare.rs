@@ -4,6 +4,8 @@
 //! copy passes FLIP and fails exact; a depth buffer of another convention
 //! is an error naming the convention.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use terraclip::check::compare;
 use terraclip::check::outside::{self, Mode};
@@ -13,12 +15,7 @@ use terraclip::render::{draw, Image, RenderOptions};
 use terraclip::scene::Scene;
 
 fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("compare")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(d.parent().unwrap()).unwrap();
-    d
+    common::fresh_tmp("compare", name)
 }
 
 /// Exports golden `name` to a folder of its own (the tests run at once).

@@ -191,6 +191,22 @@ fn every_json_key_is_in_docs_cli_md() {
         )
         .unwrap();
     }
+    // An export to compare with: its own colour and depth pass.
+    let (golden_pack, export_dir) = (s(&tmp("pack")), s(&tmp("export")));
+    let (one_frame, compare_out) = (s(&tmp("one-frame")), s(&tmp("compare")));
+    let (one_frame_png, one_frame_depth) = (
+        format!("{one_frame}/colour.png"),
+        format!("{one_frame}/depth.f32"),
+    );
+    json(&[
+        "export",
+        "golden/level-tint.toml",
+        "--size",
+        "64x36",
+        "--out",
+        &one_frame,
+    ])
+    .unwrap();
     // Each command's runs: together they print every key the page lists.
     let runs: Vec<(&str, Vec<Vec<&str>>)> = vec![
         (
@@ -217,7 +233,30 @@ fn every_json_key_is_in_docs_cli_md() {
                 ],
             ],
         ),
-        ("golden", vec![vec!["golden", &golden]]),
+        (
+            "golden",
+            vec![
+                vec!["golden", &golden],
+                vec!["golden", &golden, "--export", &golden_pack],
+            ],
+        ),
+        (
+            "export",
+            vec![vec!["export", "--size", "48x27", "--out", &export_dir]],
+        ),
+        (
+            "compare",
+            vec![vec![
+                "compare",
+                &one_frame,
+                "--image",
+                &one_frame_png,
+                "--depth",
+                &one_frame_depth,
+                "--out",
+                &compare_out,
+            ]],
+        ),
         (
             "check-gpu",
             vec![
@@ -397,7 +436,7 @@ fn every_json_key_is_in_docs_cli_md() {
 #[test]
 fn the_page_lists_the_keys_of_every_command() {
     let docs = documented();
-    assert_eq!(docs.len(), 14, "{:?}", docs.keys().collect::<Vec<_>>());
+    assert_eq!(docs.len(), 16, "{:?}", docs.keys().collect::<Vec<_>>());
     assert!(docs["render"].contains("non_finite.clip"));
     assert!(docs["check-gpu"].contains("scenes[].unmatched_example.a_rgba"));
     assert!(docs["scaling"].contains("update.walks[].overheads"));

@@ -4,6 +4,8 @@
 //! bits; corrupt, truncated and mislabelled exports are clean errors that
 //! name the file.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use terraclip::export;
 use terraclip::frame::stats::Passes;
@@ -11,12 +13,7 @@ use terraclip::render::{draw, RenderOptions};
 use terraclip::scene::Scene;
 
 fn tmp(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("export")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(d.parent().unwrap()).unwrap();
-    d
+    common::fresh_tmp("export", name)
 }
 
 fn export_golden(name: &str, dir: &Path) -> export::Written {
@@ -301,4 +298,60 @@ fn the_files_hold_what_the_manifest_says() {
         }
         assert!(checked > 0, "level {}", t.level);
     }
+}
+
+/// `golden --export`: a folder per scene that `compare` reads, a README,
+/// a manifest over all; none at all when a golden fails.
+#[test]
+fn golden_export_writes_a_conformance_pack_only_from_passing_goldens() {
+    let goldens = tmp("pack-goldens");
+    std::fs::create_dir_all(&goldens).unwrap();
+    common::copy_golden("grazing-horizon", &goldens, "a");
+    common::copy_golden("wireframe", &goldens, "b");
+    let out = tmp("pack-out");
+    let run = || {
+        std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .arg("golden")
+            .arg(&goldens)
+            .arg("--json")
+            .arg("--export")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let o = run();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["export"]["scenes"], serde_json::json!(["a", "b"]));
+    let readme = std::fs::read_to_string(out.join("README.md")).unwrap();
+    assert!(readme.contains("terraclip compare") && readme.contains("Licence"));
+    for name in ["a", "b"] {
+        let e = export::read(&out.join(name)).unwrap();
+        let (_, _, png) =
+            terraclip::check::golden::load_png(&goldens.join(format!("{name}.png"))).unwrap();
+        assert!(png == e.image.rgba, "{name}");
+    }
+    let m: export::Manifest =
+        serde_json::from_slice(&std::fs::read(out.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(m.frames, ["a", "b"]);
+    assert!(
+        m.files.iter().any(|f| f.name == "b/frame.glb")
+            && m.files.iter().any(|f| f.name == "README.md")
+    );
+    // A golden that fails: an error, and no pack.
+    let _ = std::fs::remove_dir_all(&out);
+    let (w, h, mut rgba) = terraclip::check::golden::load_png(&goldens.join("b.png")).unwrap();
+    rgba[0] ^= 0xff;
+    let img = terraclip::render::Image {
+        width: w,
+        height: h,
+        rgba,
+        depth: vec![],
+    };
+    std::fs::write(goldens.join("b.png"), img.png().unwrap()).unwrap();
+    let o = run();
+    assert!(!o.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["export"].is_null(), "{v}");
+    assert!(!out.exists());
 }

@@ -13,14 +13,24 @@ pub struct Args {
     /// Where to write -actual and -diff images of failing scenes.
     #[arg(long, default_value = "target/golden-diff")]
     pub diff_dir: PathBuf,
+    /// Also write a conformance pack here: every scene exported (as
+    /// `export` writes a frame), a README for its users, a manifest.
+    #[arg(long)]
+    pub export: Option<PathBuf>,
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     let results = terraclip::check::golden::check(&a.dir, a.bless, Some(&a.diff_dir))?;
+    let failed = results.iter().filter(|r| !r.pass).count();
+    // A pack is made only from goldens that hold.
+    let pack = match &a.export {
+        Some(out) if failed == 0 => Some(terraclip::export::conformance_pack(&a.dir, out)?),
+        _ => None,
+    };
     if a.json {
-        println!("{}", json!({ "scenes": results }));
+        println!("{}", json!({ "scenes": results, "export": pack }));
     } else {
         for r in &results {
             let state = match (r.pass, r.blessed) {
@@ -35,7 +45,15 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    let failed = results.iter().filter(|r| !r.pass).count();
+    if let (Some(p), false) = (&pack, a.json) {
+        println!(
+            "wrote the conformance pack {} ({} scenes, {} files, {} bytes)",
+            p.dir.display(),
+            p.scenes.len(),
+            p.files,
+            p.bytes
+        );
+    }
     if failed > 0 {
         anyhow::bail!(
             "{failed} golden scene(s) differ; images in {}",

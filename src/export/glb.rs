@@ -70,21 +70,6 @@ pub struct Triangles {
     pub levels: Vec<u32>,
 }
 
-/// The runs of equal levels: (level, first triangle, end).
-fn runs(levels: &[u32]) -> Vec<(u32, usize, usize)> {
-    let mut out = vec![];
-    let mut t = 0;
-    while t < levels.len() {
-        let l = levels[t];
-        let end = (t..levels.len())
-            .find(|&j| levels[j] != l)
-            .unwrap_or(levels.len());
-        out.push((l, t, end));
-        t = end;
-    }
-    out
-}
-
 fn extras(v: serde_json::Value) -> json::Extras {
     serde_json::value::to_raw_value(&v).ok()
 }
@@ -164,7 +149,7 @@ pub fn write(t: &Triangles, layout: &Layout, node_extras: serde_json::Value) -> 
     });
     let mut bin = vec![];
     let mut primitives = vec![];
-    for (l, t0, t1) in runs(&t.levels) {
+    for (l, t0, t1) in crate::lod::LodMesh::level_runs(&t.levels) {
         let (v0, v1) = (3 * t0, 3 * t1);
         let pos: Vec<f32> = t.positions[v0..v1].iter().flatten().copied().collect();
         let mut attributes = BTreeMap::new();

@@ -907,3 +907,70 @@ pub fn scene(
         bytes: all.iter().map(|f| f.1.len() as u64).sum(),
     })
 }
+
+/// What [`conformance_pack`] wrote.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct PackWritten {
+    /// The pack's folder.
+    pub dir: PathBuf,
+    /// The scenes exported, one folder each, in name order.
+    pub scenes: Vec<String>,
+    /// Files written, manifests and README included.
+    pub files: usize,
+    /// Their bytes.
+    pub bytes: u64,
+}
+
+/// The conformance pack's README: for the people who draw its frames.
+const PACK_README: &str = include_str!("pack_readme.md");
+
+/// Exports every scene of the golden folder `golden` into `out` (a folder
+/// each, as `export` writes one frame), with a README for the pack's users
+/// and a manifest over it all: a conformance pack another renderer is
+/// checked against with `terraclip compare`. Written whole, then renamed
+/// into place.
+pub fn conformance_pack(golden: &Path, out: &Path) -> Result<PackWritten> {
+    let mut all: Vec<(String, Vec<u8>)> = vec![];
+    let mut scenes = vec![];
+    for path in crate::check::golden::scenes(golden)? {
+        let name = path
+            .file_stem()
+            .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        let scene = crate::scene::Scene::load(&path)?;
+        let mut passes = crate::frame::stats::Passes::default();
+        let mut session = crate::render::Session::new(&scene, &mut passes)?;
+        let camera = scene.camera();
+        let (frame, _) = session.frame(&camera, &mut passes)?;
+        let (image, _) = crate::render::draw(
+            &frame,
+            &crate::render::RenderOptions::default(),
+            &mut passes,
+        );
+        let src = Source {
+            scene: &name,
+            scene_text: Some(&text),
+            camera: &camera,
+            frame: &frame,
+            image: &image,
+            world: &session.world,
+            clipmap: session.lod.clipmap(),
+        };
+        all.extend(
+            files(&src)?
+                .into_iter()
+                .map(|(n, b)| (format!("{name}/{n}"), b)),
+        );
+        scenes.push(name);
+    }
+    all.push(("README.md".into(), PACK_README.as_bytes().to_vec()));
+    let m = manifest("conformance pack", scenes.clone(), &all);
+    all.push(("manifest.json".into(), to_json(&m)?));
+    write_dir(out, &all)?;
+    Ok(PackWritten {
+        dir: out.to_path_buf(),
+        scenes,
+        files: all.len(),
+        bytes: all.iter().map(|f| f.1.len() as u64).sum(),
+    })
+}

@@ -492,19 +492,12 @@ impl GpuRenderer {
                     v
                 })
                 .collect();
-            let levels = &frame.mesh.levels;
-            let mut t = 0;
-            while t < levels.len() {
-                let l = levels[t];
-                let end = (t..levels.len())
-                    .find(|&j| levels[j] != l)
-                    .unwrap_or(levels.len());
+            for (l, t, end) in crate::lod::LodMesh::level_runs(&frame.mesh.levels) {
                 let d = Draw {
                     level: [l as i32, 1, 1, MODE_PASSTHROUGH],
                     ..Default::default()
                 };
                 draws.push((d, 3 * t as u32..3 * end as u32));
-                t = end;
             }
         }
 

@@ -123,6 +123,24 @@ impl LodMesh {
         }
     }
 
+    /// The runs of consecutive triangles on one level, in draw order:
+    /// (level, first triangle, end). Back ends that draw per level (the
+    /// GPU's passthrough, the exported glTF's primitives) keep the
+    /// triangles' order, which decides depth ties.
+    pub fn level_runs(levels: &[u32]) -> Vec<(u32, usize, usize)> {
+        let mut out = vec![];
+        let mut t = 0;
+        while t < levels.len() {
+            let l = levels[t];
+            let end = (t..levels.len())
+                .find(|&j| levels[j] != l)
+                .unwrap_or(levels.len());
+            out.push((l, t, end));
+            t = end;
+        }
+        out
+    }
+
     /// Appends one triangle on the base level.
     #[inline]
     pub fn push(&mut self, t: [LodVertex; 3]) {

@@ -171,3 +171,14 @@ pub fn same_window(
         }
     }
 }
+
+/// An empty path `name` under the test target's temporary folder `group`
+/// (its parent made, anything left there by an earlier run removed).
+pub fn fresh_tmp(group: &str, name: &str) -> std::path::PathBuf {
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(group)
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(d.parent().unwrap()).unwrap();
+    d
+}
