@@ -1,7 +1,7 @@
 //! Malformed input, ≥ 10,000 cases in one bounded run: valid PNG (8 and
 //! 16 bit), TGA, TIFF (f32, u16), ASCII-grid, raw f32 + JSON sidecar files,
-//! packs
-//! and scene files are truncated, bit-flipped, given absurd header sizes
+//! packs, scene files, exports (one file damaged, the manifest made to
+//! match) and `compare`'s image and depth inputs are truncated, bit-flipped, given absurd header sizes
 //! (decompression bombs), NaN/inf/no-data patterns and wrong types. Every
 //! case must either load, or fail with a typed error that names the file;
 //! none may panic. A map that loads must hold only finite heights where it
@@ -333,6 +333,8 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("scene", 97),
     ("geographic tif", 617),
     ("pack", 2),
+    ("export", 189),
+    ("compare", 30),
 ];
 
 /// A lossy pack of a small procedural map.
@@ -404,6 +406,115 @@ fn mapped_levels(p: &Path) -> terraclip::Result<Vec<terraclip::pyramid::PyramidL
     let mut py = Pyramid::decoded(std::sync::Arc::new(r), filter, 1).map_err(bad)?;
     py.decode_window(0, [0, 0, w as i64 - 1, h as i64 - 1])?;
     Ok(py.levels)
+}
+
+/// A small export with every varying and both effect textures: jacksboro
+/// with every effect but level-tint, at 64×36.
+fn export_seed(d: &Path) -> PathBuf {
+    let mut scene = Scene::load(Path::new("golden/jacksboro-oblique.toml")).unwrap();
+    let effects = [
+        "lambert",
+        "phong",
+        "fog",
+        "shadows",
+        "normal-map",
+        "wireframe",
+        "morph",
+    ];
+    scene
+        .apply(&terraclip::scene::Overrides {
+            effects: Some(effects.iter().map(|e| e.parse().unwrap()).collect()),
+            size: Some([64, 36]),
+            ..Default::default()
+        })
+        .unwrap();
+    let out = d.join("export-seed");
+    terraclip::export::scene(&scene, "seed", None, 1, 0.0, &out).unwrap();
+    out
+}
+
+/// The files of an export a case may replace.
+const EXPORT_FILES: [&str; 9] = [
+    "frame.glb",
+    "frame.glb",
+    "camera.json",
+    "frame.json",
+    "depth.exr",
+    "clipmap.exr",
+    "effects.exr",
+    "colour.png",
+    "depth.f32",
+];
+
+/// Writes `bytes` as `name` of the export `d` and rewrites its manifest
+/// to match, so that the reader's own checks meet the damage.
+fn reexport(d: &Path, name: &str, bytes: &[u8]) {
+    std::fs::write(d.join(name), bytes).unwrap();
+    let files: Vec<(String, Vec<u8>)> = EXPORT_FILES[1..]
+        .iter()
+        .map(|n| (n.to_string(), std::fs::read(d.join(n)).unwrap()))
+        .collect();
+    let m = terraclip::export::manifest("seed", vec![], &files);
+    std::fs::write(d.join("manifest.json"), serde_json::to_vec(&m).unwrap()).unwrap();
+}
+
+/// Reads the export `d` whose file `name` was damaged: Ok(true) read and
+/// drawn (finite depth, the stated size), Ok(false) an error naming the
+/// file (or the export), never a panic.
+fn export_once(d: &Path, name: &str) -> Result<bool, String> {
+    use terraclip::render::{draw, RenderOptions};
+    let r = catch_unwind(AssertUnwindSafe(|| {
+        terraclip::export::read(d).map(|e| {
+            let (img, _) = draw(&e.frame, &RenderOptions::default(), &mut Default::default());
+            (img, e.image)
+        })
+    }));
+    match r {
+        Err(_) => Err(format!("panic reading the export with a damaged {name}")),
+        Ok(Ok((img, reference))) => {
+            let n = (img.width * img.height) as usize;
+            if img.depth.len() != n || img.depth.iter().any(|z| !z.is_finite()) {
+                return Err(format!("{name}: drawn badly"));
+            }
+            if (img.width, img.height) != (reference.width, reference.height) {
+                return Err(format!("{name}: drawn at another size"));
+            }
+            Ok(true)
+        }
+        Ok(Err(e)) => {
+            let msg = e.to_string();
+            if msg.contains(name) || msg.contains("export-case") {
+                Ok(false)
+            } else {
+                Err(format!("export error does not name {name}: {msg}"))
+            }
+        }
+    }
+}
+
+/// `compare` of an outside image or depth file `p` (damaged) against the
+/// export `r`: an outcome, or an error naming the file; never a panic.
+fn compare_once(
+    r: &Path,
+    image: &Path,
+    depth: Option<&Path>,
+    named: &Path,
+) -> Result<bool, String> {
+    use terraclip::check::outside::{run, Mode};
+    match catch_unwind(AssertUnwindSafe(|| {
+        run(r, image, depth, Mode::Tiered, None)
+    })) {
+        Err(_) => Err(format!("compare panicked on {}", named.display())),
+        Ok(Ok(o)) => Ok(o.pass),
+        Ok(Err(e)) => {
+            let name = named.file_name().unwrap().to_string_lossy().to_string();
+            if e.to_string().contains(&name) {
+                Ok(false)
+            } else {
+                Err(format!("compare error does not name {name}: {e}"))
+            }
+        }
+    }
 }
 
 #[test]
@@ -532,6 +643,56 @@ fn ten_thousand_malformed_inputs_never_panic() {
             record(kind, load(&p));
             cases += 1;
         }
+    }
+    // Exports (1,000: one file cut, flipped or edited, the manifest made
+    // to match so the parsers meet it) and `compare`'s inputs (400:
+    // damaged PNGs and depth files of their own renderer).
+    let mut ex_rng = Rng(0xE7_0057_5EED_0001);
+    let seed = export_seed(&d);
+    let case = d.join("export-case");
+    let _ = std::fs::remove_dir_all(&case);
+    std::fs::create_dir_all(&case).unwrap();
+    for f in std::fs::read_dir(&seed).unwrap() {
+        let f = f.unwrap();
+        std::fs::copy(f.path(), case.join(f.file_name())).unwrap();
+    }
+    for _ in 0..1000 {
+        let name = EXPORT_FILES[ex_rng.below(EXPORT_FILES.len())];
+        let good = std::fs::read(seed.join(name)).unwrap();
+        let bytes = if name.ends_with(".json") && ex_rng.below(2) == 0 {
+            mutate_text(&mut ex_rng, &String::from_utf8_lossy(&good)).into_bytes()
+        } else {
+            mutate(&mut ex_rng, &good)
+        };
+        reexport(&case, name, &bytes);
+        record("export", export_once(&case, name));
+        reexport(&case, name, &good);
+        cases += 1;
+    }
+    let (theirs, theirs_depth) = (d.join("theirs.png"), d.join("theirs-depth.f32"));
+    let theirs_exr = d.join("theirs-depth.exr");
+    let png = std::fs::read(seed.join("colour.png")).unwrap();
+    let raw = std::fs::read(seed.join("depth.f32")).unwrap();
+    let exr = std::fs::read(seed.join("depth.exr")).unwrap();
+    for i in 0..400 {
+        std::fs::write(&theirs, &png).unwrap();
+        let (depth, named) = match i % 3 {
+            0 => {
+                std::fs::write(&theirs, mutate(&mut ex_rng, &png)).unwrap();
+                std::fs::write(&theirs_depth, &raw).unwrap();
+                (&theirs_depth, &theirs)
+            }
+            1 => {
+                std::fs::write(&theirs_depth, mutate(&mut ex_rng, &raw)).unwrap();
+                (&theirs_depth, &theirs_depth)
+            }
+            _ => {
+                std::fs::write(&theirs_exr, mutate(&mut ex_rng, &exr)).unwrap();
+                (&theirs_exr, &theirs_exr)
+            }
+        };
+        record("compare", compare_once(&seed, &theirs, Some(depth), named));
+        cases += 1;
     }
     let secs = start.elapsed().as_secs_f64();
     println!(

@@ -633,8 +633,23 @@ pub fn read(dir: &Path) -> Result<Exported> {
     }
     let camera: CameraFile = parse(dir, "camera.json", &checked(dir, &manifest, "camera.json")?)?;
     let info: FrameFile = parse(dir, "frame.json", &checked(dir, &manifest, "frame.json")?)?;
-    let effects =
-        Effects::from_list(&info.effects).map_err(|e| Error::file(dir.join("frame.json"), e))?;
+    let fpath = dir.join("frame.json");
+    let effects = Effects::from_list(&info.effects).map_err(|e| Error::file(&fpath, e))?;
+    info.shading
+        .validate()
+        .map_err(|(field, why)| Error::file(&fpath, format!("{field}: {why}")))?;
+    // Levels index per-level tables: a clipmap has at most 32.
+    let levels = info.levels.iter().map(|l| l.level);
+    let levels = levels.chain(info.normal_maps.iter().map(|m| m.level));
+    if let Some(l) = levels
+        .chain(info.toroids.iter().map(|t| t.level))
+        .find(|&l| l >= 32)
+    {
+        return Err(Error::file(
+            &fpath,
+            format!("level {l}: levels are 0 to 31"),
+        ));
+    }
     let layout = Layout::new(&effects);
     let want: Vec<&str> = glb::varyings(&layout).iter().map(|v| v.name).collect();
     let have: Vec<&str> = info.varyings.iter().map(|v| v.attribute.as_str()).collect();
