@@ -70,6 +70,9 @@ enum Cmd {
     /// Compare another renderer's image (and depth) of an exported frame
     /// with the reference: exact, tiered or FLIP; non-zero exit on failure.
     Compare(cli::compare::Args),
+    /// Join the JSON of a sweep's shards (`--shard i/N` of `cracks` or
+    /// `golden`) into what one run prints.
+    Merge(cli::merge::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -93,6 +96,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Cmd::Diagram(a)) => cli::diagram::run(&a),
         Some(Cmd::Export(a)) => cli::export::run(&a),
         Some(Cmd::Compare(a)) => cli::compare::run(&a),
+        Some(Cmd::Merge(a)) => cli::merge::run(&a),
         // The main job: render the embedded default scene.
         None => cli::render::run(&cli::render::Args::main_job()),
     }

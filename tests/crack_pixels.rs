@@ -9,6 +9,7 @@
 mod common;
 use terraclip::scene::{Effect, Scene};
 use terraclip::studies::cracks::{survey, CrackReport};
+use terraclip::studies::shard::Shard;
 
 fn scene(morph: bool) -> Scene {
     let mut s = common::small_scene();
@@ -18,7 +19,7 @@ fn scene(morph: bool) -> Scene {
 
 fn run(morph: bool, schemes: &[&str], views: usize) -> CrackReport {
     let list: Vec<String> = schemes.iter().map(|s| s.to_string()).collect();
-    survey(&scene(morph), &list, views, [96, 64], || {}).unwrap()
+    survey(&scene(morph), &list, views, [96, 64], Shard::WHOLE, || {}).unwrap()
 }
 
 #[test]
@@ -143,6 +144,7 @@ fn synthesised_levels_do_not_crack() {
         &list(&["clipmap/strips", "clipmap/footprints", "cdlod"]),
         24,
         [96, 64],
+        Shard::WHOLE,
         || {},
     )
     .unwrap();
@@ -154,6 +156,14 @@ fn synthesised_levels_do_not_crack() {
         );
     }
     s.effects.retain(|e| *e != Effect::Morph);
-    let r = survey(&s, &list(&["clipmap/strips"]), 24, [96, 64], || {}).unwrap();
+    let r = survey(
+        &s,
+        &list(&["clipmap/strips"]),
+        24,
+        [96, 64],
+        Shard::WHOLE,
+        || {},
+    )
+    .unwrap();
     assert!(r.crack_pixels > 0, "morph off must crack");
 }

@@ -238,6 +238,7 @@ fn every_json_key_is_in_docs_cli_md() {
             vec![
                 vec!["golden", &golden],
                 vec!["golden", &golden, "--export", &golden_pack],
+                vec!["golden", &golden, "--shard", "0/2"],
             ],
         ),
         (
@@ -314,9 +315,12 @@ fn every_json_key_is_in_docs_cli_md() {
         ("fly", vec![vec!["fly", "--frames", "2", "--size", "32x18"]]),
         (
             "cracks",
-            vec![vec![
-                "cracks", "--views", "2", "--size", "32x20", "--lod", "all",
-            ]],
+            vec![
+                vec!["cracks", "--views", "2", "--size", "32x20", "--lod", "all"],
+                vec![
+                    "cracks", "--views", "2", "--size", "32x20", "--shard", "1/2",
+                ],
+            ],
         ),
         (
             "height",

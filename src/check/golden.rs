@@ -13,7 +13,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// One scene's outcome.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct GoldenResult {
     /// The scene's file stem (`default` for `default.toml`).
     pub scene: String,
@@ -139,9 +139,29 @@ pub fn check_one(
 }
 
 /// Checks every scene in `dir`.
-pub fn check(dir: &Path, bless: bool, diff_dir: Option<&Path>) -> Result<Vec<GoldenResult>> {
+pub fn check(
+    dir: &Path,
+    bless: bool,
+    diff_dir: Option<&Path>,
+    shard: crate::studies::shard::Shard,
+) -> Result<Vec<GoldenResult>> {
     scenes(dir)?
         .iter()
-        .map(|s| check_one(s, bless, diff_dir, &RenderOptions::default()))
+        .enumerate()
+        .filter(|(k, _)| shard.owns(*k))
+        .map(|(_, s)| check_one(s, bless, diff_dir, &RenderOptions::default()))
         .collect()
+}
+
+/// Joins the `golden --json` of a sweep's shards: every scene's result, in
+/// name order, as one run lists them (a sharded run writes no pack).
+pub fn merge(parts: &[&serde_json::Value]) -> serde_json::Value {
+    let mut scenes: Vec<GoldenResult> = parts
+        .iter()
+        .filter_map(|v| serde_json::from_value::<Vec<GoldenResult>>(v["scenes"].clone()).ok())
+        .flatten()
+        .collect();
+    // The order `scenes` lists their files in.
+    scenes.sort_by_key(|r| format!("{}.toml", r.scene));
+    serde_json::json!({ "scenes": scenes, "export": null })
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use terraclip::render::Image;
 use terraclip::scene::{Overrides, Scene};
 use terraclip::studies::cracks;
+use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -20,6 +21,9 @@ pub struct Args {
     /// Image size WIDTHxHEIGHT.
     #[arg(long, default_value = "160x100", value_parser = Overrides::parse_size)]
     pub size: [u32; 2],
+    /// Survey part i of N of the views (`merge` joins the parts' JSON).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     /// Exit non-zero if any crack pixel is found.
     #[arg(long)]
     pub strict: bool,
@@ -47,7 +51,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let s = load_scene(&a.scene)?;
     let schemes = scheme_list(&a.lod, &s);
     let bar = progress(a.views, "cracks");
-    let r = cracks::survey(&s, &schemes, a.views, a.size, || bar.inc(1))?;
+    let r = cracks::survey(&s, &schemes, a.views, a.size, a.shard, || bar.inc(1))?;
     bar.finish_and_clear();
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
@@ -64,7 +68,18 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         }
     }
     if a.json {
-        println!("{}", serde_json::to_value(&r)?);
+        let of = format!(
+            "{} --views {} --lod {} --size {}x{}",
+            a.scene
+                .as_ref()
+                .map_or("<default scene>".into(), |p| p.display().to_string()),
+            a.views,
+            schemes.join(","),
+            a.size[0],
+            a.size[1]
+        );
+        let v = shard::tag(serde_json::to_value(&r)?, "cracks", a.shard, &of);
+        println!("{v}");
     } else {
         for c in &r.schemes {
             println!(

@@ -2,6 +2,7 @@
 
 use serde_json::json;
 use std::path::PathBuf;
+use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -17,12 +18,18 @@ pub struct Args {
     /// `export` writes a frame), a README for its users, a manifest.
     #[arg(long)]
     pub export: Option<PathBuf>,
+    /// Check part i of N of the scenes (`merge` joins the parts' JSON).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     #[arg(long)]
     pub json: bool,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let results = terraclip::check::golden::check(&a.dir, a.bless, Some(&a.diff_dir))?;
+    if a.export.is_some() && !a.shard.is_whole() {
+        anyhow::bail!("--export writes one pack of every scene: it does not take --shard");
+    }
+    let results = terraclip::check::golden::check(&a.dir, a.bless, Some(&a.diff_dir), a.shard)?;
     let failed = results.iter().filter(|r| !r.pass).count();
     // A pack is made only from goldens that hold.
     let pack = match &a.export {
@@ -30,7 +37,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         _ => None,
     };
     if a.json {
-        println!("{}", json!({ "scenes": results, "export": pack }));
+        let v = json!({ "scenes": results, "export": pack });
+        let of = a.dir.display().to_string();
+        println!("{}", shard::tag(v, "golden", a.shard, &of));
     } else {
         for r in &results {
             let state = match (r.pass, r.blessed) {

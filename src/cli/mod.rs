@@ -14,6 +14,7 @@ pub mod fly;
 pub mod golden;
 pub mod height;
 pub mod info;
+pub mod merge;
 pub mod pack;
 pub mod render;
 pub mod scaling;

@@ -29,9 +29,10 @@ use crate::render::{self, Image, RenderOptions, Session};
 use crate::scene::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics;
+use crate::studies::shard::Shard;
 use crate::studies::views;
 use glam::DVec3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Schemes `--lod all` surveys: every scheme but brute force (the
 /// reference), the clipmap in each layout (`clipmap/strips`, …).
@@ -47,7 +48,7 @@ pub fn all() -> Vec<String> {
 }
 
 /// One scheme's crack survey over every view (`cracks --json` `schemes`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SchemeCracks {
     /// The scheme.
     pub lod: String,
@@ -75,10 +76,12 @@ pub struct SchemeCracks {
 }
 
 /// The crack survey: each scheme against brute force over many seeded views.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct CrackReport {
-    /// Views surveyed per scheme.
+    /// Views in the sweep.
     pub views: usize,
+    /// Views this run surveyed per scheme: all of them, or a shard's share.
+    pub views_surveyed: usize,
     /// Holes over all surveyed schemes.
     pub crack_pixels: usize,
     /// LOD-sky pixels over all surveyed schemes.
@@ -102,13 +105,17 @@ pub fn survey_scene(scene: &Scene, size: [u32; 2]) -> Scene {
     s
 }
 
-/// Surveys `schemes` over `count` random views; `tick` is called after
-/// each view.
+/// Surveys `schemes` over the views of `count` random ones that `shard`
+/// owns; `tick` is called after each view. Every view still moves each
+/// scheme (its frame is made and dropped), so schemes that keep state
+/// from frame to frame, ROAM's queues and the clipmap's toroids, are in
+/// the same state at a shard's views as in one run of them all.
 pub fn survey(
     scene: &Scene,
     schemes: &[String],
     count: usize,
     size: [u32; 2],
+    shard: Shard,
     mut tick: impl FnMut(),
 ) -> Result<CrackReport> {
     let base = survey_scene(scene, size);
@@ -137,7 +144,16 @@ pub fn survey(
             worst_images: None,
         })
         .collect();
+    let mut surveyed = 0;
     for (i, cam) in cams.iter().enumerate() {
+        if !shard.owns(i) {
+            for s in sessions.iter_mut() {
+                s.frame(cam, &mut Passes::default())?;
+            }
+            tick();
+            continue;
+        }
+        surveyed += 1;
         let (reference, _) = brute.render(cam, &opts, Passes::default())?;
         for (s, r) in sessions.iter_mut().zip(out.iter_mut()) {
             let (frame, _) = s.frame(cam, &mut Passes::default())?;
@@ -172,15 +188,60 @@ pub fn survey(
         }
         tick();
     }
-    let worst = out.iter().max_by_key(|r| r.worst_pixels);
-    Ok(CrackReport {
-        views: count,
-        crack_pixels: out.iter().map(|r| r.crack_pixels).sum(),
-        lod_sky_pixels: out.iter().map(|r| r.lod_sky_pixels).sum(),
-        far_depth_pixels: out.iter().map(|r| r.far_depth_pixels).sum(),
+    Ok(report(count, surveyed, out))
+}
+
+/// The report over the schemes' tallies.
+fn report(views: usize, views_surveyed: usize, schemes: Vec<SchemeCracks>) -> CrackReport {
+    let worst = schemes.iter().max_by_key(|r| r.worst_pixels);
+    CrackReport {
+        views,
+        views_surveyed,
+        crack_pixels: schemes.iter().map(|r| r.crack_pixels).sum(),
+        lod_sky_pixels: schemes.iter().map(|r| r.lod_sky_pixels).sum(),
+        far_depth_pixels: schemes.iter().map(|r| r.far_depth_pixels).sum(),
         worst_view: worst.map_or(0, |r| r.worst_view),
-        schemes: out,
-    })
+        schemes,
+    }
+}
+
+/// Joins the surveys of a sweep's shards ([`crate::studies::shard::merge`]
+/// checks they are its parts): counts summed, and each scheme's worst view
+/// the one with the most holes, the earliest on a tie, as one run picks it.
+pub fn merge(parts: &[&serde_json::Value]) -> serde_json::Value {
+    let reports: Vec<CrackReport> = parts
+        .iter()
+        .filter_map(|v| serde_json::from_value((*v).clone()).ok())
+        .collect();
+    let Some(first) = reports.first() else {
+        return serde_json::Value::Null;
+    };
+    let schemes = (0..first.schemes.len())
+        .map(|j| {
+            let all: Vec<&SchemeCracks> = reports.iter().filter_map(|r| r.schemes.get(j)).collect();
+            let sum = |f: fn(&SchemeCracks) -> usize| all.iter().map(|s| f(s)).sum();
+            let worst = all
+                .iter()
+                .max_by(|a, b| {
+                    a.worst_pixels
+                        .cmp(&b.worst_pixels)
+                        .then(b.worst_view.cmp(&a.worst_view))
+                })
+                .copied();
+            let w = worst.cloned().unwrap_or_else(|| all[0].clone());
+            SchemeCracks {
+                crack_pixels: sum(|s| s.crack_pixels),
+                lod_sky_pixels: sum(|s| s.lod_sky_pixels),
+                far_depth_pixels: sum(|s| s.far_depth_pixels),
+                views_with_cracks: sum(|s| s.views_with_cracks),
+                views_with_lod_sky: sum(|s| s.views_with_lod_sky),
+                worst_images: None,
+                ..w
+            }
+        })
+        .collect();
+    let surveyed = reports.iter().map(|r| r.views_surveyed).sum();
+    serde_json::to_value(report(first.views, surveyed, schemes)).unwrap_or_default()
 }
 
 /// What explains a candidate pixel.

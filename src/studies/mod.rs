@@ -9,6 +9,7 @@ pub mod fly;
 pub mod metrics;
 pub(crate) mod report;
 pub mod scaling;
+pub mod shard;
 pub mod synthesis;
 pub mod tradeoff;
 pub mod views;
