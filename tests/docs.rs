@@ -272,6 +272,15 @@ fn every_json_key_is_in_docs_cli_md() {
                     "--out",
                     &tradeoff_out,
                 ],
+                vec![
+                    "check-gpu",
+                    "golden/wireframe.toml",
+                    "golden/morph-on.toml",
+                    "--shard",
+                    "1/2",
+                    "--out",
+                    &tradeoff_out,
+                ],
             ],
         ),
         (

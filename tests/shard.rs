@@ -152,3 +152,45 @@ fn bad_shards_and_merges_are_errors() {
     }
     assert!(terraclip(&["merge", &a, &b]).status.success());
 }
+
+/// check-gpu's parts, where an adapter is found (required under
+/// `TERRACLIP_REQUIRE_GPU=1`, as in CI).
+#[test]
+fn three_check_gpu_shards_merged_equal_one_run() {
+    let dir = common::fresh_tmp("shard", "check-gpu");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("images");
+    let out = out.to_str().unwrap();
+    let args = [
+        "check-gpu",
+        "golden/wireframe.toml",
+        "golden/morph-on.toml",
+        "golden/level-tint.toml",
+        "golden/grazing-horizon.toml",
+        "--frames",
+        "2",
+        "--out",
+        out,
+        "--json",
+    ];
+    let probe = terraclip(&args);
+    if !probe.status.success() && std::env::var("TERRACLIP_REQUIRE_GPU").as_deref() != Ok("1") {
+        eprintln!("skipping: {}", String::from_utf8_lossy(&probe.stderr));
+        return;
+    }
+    let (one, merged, parts) = sharded(&args, 3, &dir);
+    assert_eq!(one, merged);
+    let v: serde_json::Value = serde_json::from_str(&one).unwrap();
+    let names: Vec<&str> = v["scenes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["scene"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        ["wireframe", "morph-on", "level-tint", "grazing-horizon"]
+    );
+    let p: serde_json::Value = serde_json::from_str(&parts[0]).unwrap();
+    assert_eq!(p["scenes"].as_array().unwrap().len(), 2);
+}

@@ -13,7 +13,7 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// One scene's outcome.
-#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct GoldenResult {
     /// The scene's file stem (`default` for `default.toml`).
     pub scene: String,
@@ -151,17 +151,4 @@ pub fn check(
         .filter(|(k, _)| shard.owns(*k))
         .map(|(_, s)| check_one(s, bless, diff_dir, &RenderOptions::default()))
         .collect()
-}
-
-/// Joins the `golden --json` of a sweep's shards: every scene's result, in
-/// name order, as one run lists them (a sharded run writes no pack).
-pub fn merge(parts: &[&serde_json::Value]) -> serde_json::Value {
-    let mut scenes: Vec<GoldenResult> = parts
-        .iter()
-        .filter_map(|v| serde_json::from_value::<Vec<GoldenResult>>(v["scenes"].clone()).ok())
-        .flatten()
-        .collect();
-    // The order `scenes` lists their files in.
-    scenes.sort_by_key(|r| format!("{}.toml", r.scene));
-    serde_json::json!({ "scenes": scenes, "export": null })
 }

@@ -5,6 +5,7 @@ use serde_json::json;
 use std::path::{Path, PathBuf};
 use terraclip::gpu::Api;
 use terraclip::scene::Scene;
+use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -27,6 +28,9 @@ pub struct Args {
     /// GPU and compares every level's texels after each update.
     #[arg(long, value_enum, hide_possible_values = true)]
     pub update: Option<terraclip::scene::GpuUpdate>,
+    /// Check part i of N of the scenes (`merge` joins the parts' JSON).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     #[arg(long)]
     pub json: bool,
 }
@@ -58,7 +62,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (adapter, driver) = (gpu.adapter(), gpu.info.driver_info.clone());
     let mut r = GpuRenderer::new(gpu);
     let mut results = vec![];
-    for (name, scene) in &list {
+    let mine = list.iter().enumerate().filter(|(k, _)| a.shard.owns(*k));
+    for (_, (name, scene)) in mine {
         let mut scene = scene.clone();
         if let Some(u) = a.update {
             scene.gpu.update = u;
@@ -82,11 +87,18 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let mode = if exact { "exact" } else { "tolerance" };
     if a.json {
-        println!(
-            "{}",
-            json!({"adapter": adapter, "driver_info": driver, "exact_expected": exact,
-                   "mode": mode, "scenes": results})
+        let v = json!({"adapter": adapter, "driver_info": driver, "exact_expected": exact,
+                       "mode": mode, "scenes": results});
+        let names: Vec<&str> = list.iter().map(|(n, _)| n.as_str()).collect();
+        let of = format!(
+            "{} --frames {} --step {} --update {:?} --api {}",
+            names.join(","),
+            a.frames,
+            a.step,
+            a.update.map(|u| u.name()),
+            a.api.name()
         );
+        println!("{}", shard::tag(v, "check-gpu", a.shard, &of));
     } else {
         println!(
             "adapter {adapter}, driver {driver}: {mode} mode; images in {}",

@@ -1,4 +1,5 @@
-//! `terraclip merge`: joins the JSON of a sweep's shards (`--shard i/N`)
+//! `terraclip merge`: joins the JSON of a sweep's shards (`--shard i/N` of
+//! `cracks`, `golden` or `check-gpu`)
 //! into what one run of the sweep prints.
 
 use std::path::PathBuf;

@@ -64,7 +64,7 @@ impl Shard {
 /// The `shard` object a part adds to its command's JSON.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ShardTag {
-    /// The command (`cracks`, `golden`).
+    /// The command (`cracks`, `golden`, `check-gpu`).
     pub command: String,
     /// Which part.
     pub index: usize,
@@ -125,10 +125,60 @@ pub fn merge(parts: &[(String, Value)]) -> Result<Value> {
             format!("part {i} of {} is missing", first.count),
         ));
     }
-    let values: Vec<&Value> = parts.iter().map(|p| &p.1).collect();
+    // In part order, which is what puts the items back in sweep order.
+    let mut order: Vec<usize> = (0..parts.len()).collect();
+    order.sort_by_key(|&k| tags[k].index);
+    let values: Vec<&Value> = order.iter().map(|&k| &parts[k].1).collect();
+    let names: Vec<&str> = order.iter().map(|&k| parts[k].0.as_str()).collect();
     match first.command.as_str() {
         "cracks" => Ok(crate::studies::cracks::merge(&values)),
-        "golden" => Ok(crate::check::golden::merge(&values)),
+        "golden" | "check-gpu" => interleave(&values, &names, "scenes"),
         c => Err(bad("parts", format!("'{c}' has no merge"))),
     }
+}
+
+/// The parts' lists under `key` put back in sweep order (item k is item
+/// k / N of part k mod N), under the keys the parts share, which must
+/// agree: parts run on different adapters are not one sweep.
+fn interleave(parts: &[&Value], names: &[&str], key: &str) -> Result<Value> {
+    let lists: Vec<&Vec<Value>> = parts
+        .iter()
+        .zip(names)
+        .map(|(v, name)| {
+            v[key]
+                .as_array()
+                .ok_or_else(|| bad(name, format!("no '{key}' list")))
+        })
+        .collect::<Result<_>>()?;
+    let total: usize = lists.iter().map(|l| l.len()).sum();
+    let n = parts.len();
+    let mut items = Vec::with_capacity(total);
+    for k in 0..total {
+        let item = lists[k % n].get(k / n).ok_or_else(|| {
+            bad(
+                names[k % n],
+                format!("part {} has too few items for its share", k % n),
+            )
+        })?;
+        items.push(item.clone());
+    }
+    let rest = |v: &Value| {
+        let mut v = v.clone();
+        if let Some(o) = v.as_object_mut() {
+            o.remove(key);
+            o.remove("shard");
+        }
+        v
+    };
+    let mut out = rest(parts[0]);
+    for (v, name) in parts.iter().zip(names).skip(1) {
+        if rest(v) != out {
+            return Err(bad(
+                name,
+                "its other keys differ from part 0's (another adapter or settings?)",
+            ));
+        }
+    }
+    out[key] = Value::Array(items);
+    Ok(out)
 }
