@@ -46,6 +46,17 @@ fn sharded(args: &[&str], n: usize, dir: &Path) -> (String, String, Vec<String>)
     (one, ok(&m), outs)
 }
 
+/// The `scene` of each of a JSON's `scenes`, in order.
+fn scene_names(json: &str) -> Vec<String> {
+    let v: serde_json::Value = serde_json::from_str(json).unwrap();
+    v["scenes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["scene"].as_str().unwrap().to_string())
+        .collect()
+}
+
 #[test]
 fn three_crack_survey_shards_merged_equal_one_run() {
     let dir = common::fresh_tmp("shard", "cracks");
@@ -85,13 +96,7 @@ fn three_golden_shards_merged_equal_one_run() {
     let g = goldens.to_str().unwrap();
     let (one, merged, _) = sharded(&["golden", g, "--json"], 3, &dir);
     assert_eq!(one, merged);
-    let v: serde_json::Value = serde_json::from_str(&one).unwrap();
-    let names: Vec<&str> = v["scenes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["scene"].as_str().unwrap())
-        .collect();
+    let names = scene_names(&one);
     assert_eq!(names, ["a", "b-c", "b", "b2"]);
 }
 
@@ -180,13 +185,7 @@ fn three_check_gpu_shards_merged_equal_one_run() {
     }
     let (one, merged, parts) = sharded(&args, 3, &dir);
     assert_eq!(one, merged);
-    let v: serde_json::Value = serde_json::from_str(&one).unwrap();
-    let names: Vec<&str> = v["scenes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["scene"].as_str().unwrap())
-        .collect();
+    let names = scene_names(&one);
     assert_eq!(
         names,
         ["wireframe", "morph-on", "level-tint", "grazing-horizon"]
