@@ -24,6 +24,11 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     /// The graphics API in use (Vulkan, GL, …).
     pub api: Api,
+    /// Whether the toroids' formats (R32Float, Rg32Float) may be storage
+    /// textures, which the GPU update pass writes. GL's downlevel rules
+    /// forbid it for Rg32Float, and creating one anyway is a validation
+    /// error, which wgpu turns into a panic.
+    pub toroid_storage: bool,
 }
 
 impl Gpu {
@@ -51,6 +56,17 @@ impl Gpu {
             )
         })?;
         let info = adapter.get_info();
+        let toroid_storage = [
+            wgpu::TextureFormat::R32Float,
+            wgpu::TextureFormat::Rg32Float,
+        ]
+        .iter()
+        .all(|&f| {
+            adapter
+                .get_texture_format_features(f)
+                .allowed_usages
+                .contains(wgpu::TextureUsages::STORAGE_BINDING)
+        });
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("terraclip"),
             required_limits: adapter.limits(),
@@ -62,6 +78,7 @@ impl Gpu {
             queue,
             info,
             api,
+            toroid_storage,
         })
     }
 

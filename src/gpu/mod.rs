@@ -400,6 +400,16 @@ impl GpuRenderer {
                 Some(_) => update::UpdatePass::levels(cm, need_gradients),
                 None => vec![],
             };
+            if !on_gpu.is_empty() && !self.gpu.toroid_storage {
+                return Err(Error::value(
+                    "[gpu] update",
+                    format!(
+                        "'gpu' needs storage textures of R32Float and Rg32Float, which {} \
+                         does not allow (GL's downlevel rules); use update = \"cpu\"",
+                        self.gpu.adapter()
+                    ),
+                ));
+            }
             let jobs = tt.sync(&self.gpu, cm, c.world, c.update, need_gradients, &on_gpu);
             self.texels_made = 0;
             if let (Some(how), false) = (c.synthesis, jobs.is_empty()) {

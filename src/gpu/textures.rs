@@ -23,7 +23,12 @@ pub(super) fn toroid_texture(
     format: wgpu::TextureFormat,
     label: &str,
 ) -> wgpu::Texture {
-    let extra = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
+    let storage = if gpu.toroid_storage {
+        wgpu::TextureUsages::STORAGE_BINDING
+    } else {
+        wgpu::TextureUsages::empty()
+    };
+    let extra = storage | wgpu::TextureUsages::COPY_SRC;
     texture_for(gpu, size, format, label, extra)
 }
 
