@@ -159,10 +159,7 @@ pub fn load_depth(path: &Path, w: u32, h: u32) -> Result<Vec<f32>> {
                     ),
                 ));
             }
-            Ok(bytes
-                .chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                .collect())
+            Ok(crate::export::le_f32s(&bytes))
         }
         "exr" => {
             let layers = crate::export::exr::read(path, &bytes)?;

@@ -308,8 +308,5 @@ fn floats(a: &gltf::Accessor, blob: &[u8], comps: usize) -> std::result::Result<
             blob.len()
         ));
     }
-    Ok(blob[start..end]
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect())
+    Ok(super::le_f32s(&blob[start..end]))
 }

@@ -240,6 +240,9 @@ pub struct Manifest {
     pub files: Vec<FileEntry>,
 }
 
+/// An export's files: each path inside the folder and its bytes.
+pub type Files = Vec<(String, Vec<u8>)>;
+
 /// What one frame's export is made from.
 pub struct Source<'a> {
     /// The scene's name.
@@ -256,6 +259,15 @@ pub struct Source<'a> {
     pub world: &'a WorldMap,
     /// The clipmap, when the scene has one.
     pub clipmap: Option<&'a Clipmap>,
+}
+
+/// Little-endian f32s, as `depth.f32` holds them (a trailing partial value
+/// is dropped; callers check the length first).
+pub fn le_f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
 }
 
 fn hex(bytes: &[u8]) -> String {
@@ -307,7 +319,7 @@ fn camera_file(src: &Source) -> CameraFile {
 
 /// The files of one frame's export, in the order the manifest lists them
 /// (the manifest itself last).
-pub fn files(src: &Source) -> Result<Vec<(String, Vec<u8>)>> {
+pub fn files(src: &Source) -> Result<Files> {
     let f = src.frame;
     let cam = camera_file(src);
     let mut out: Vec<(String, Vec<u8>)> = vec![];
@@ -699,10 +711,7 @@ pub fn read(dir: &Path) -> Result<Exported> {
             ),
         ));
     }
-    let depth: Vec<f32> = dbytes
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let depth = le_f32s(&dbytes);
     let epath = dir.join("depth.exr");
     let dl = exr::read(&epath, &checked(dir, &manifest, "depth.exr")?)?;
     let z = channel(&epath, layer(&epath, &dl, "depth", [w, h])?, "Z")?;
@@ -816,6 +825,32 @@ pub fn read(dir: &Path) -> Result<Exported> {
     })
 }
 
+/// `session`'s frame for `camera`, drawn on the CPU, and its export's
+/// files ([`files`]); the session's LOD scheme moves to `camera` as a
+/// renderer's would.
+fn view_files(
+    session: &mut crate::render::Session,
+    name: &str,
+    text: Option<&str>,
+    camera: &Camera,
+) -> Result<(Frame, Files)> {
+    let mut passes = crate::frame::stats::Passes::default();
+    let (frame, _) = session.frame(camera, &mut passes)?;
+    let opts = crate::render::RenderOptions::default();
+    let (image, _) = crate::render::draw(&frame, &opts, &mut passes);
+    let src = Source {
+        scene: name,
+        scene_text: text,
+        camera,
+        frame: &frame,
+        image: &image,
+        world: &session.world,
+        clipmap: session.lod.clipmap(),
+    };
+    let files = files(&src)?;
+    Ok((frame, files))
+}
+
 /// One exported frame, as `terraclip export --json` reports it.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct FrameSummary {
@@ -859,31 +894,17 @@ pub fn scene(
     step: f64,
     dir: &Path,
 ) -> Result<Written> {
-    use crate::frame::stats::Passes;
-    use crate::render::{draw, RenderOptions, Session};
     if frames == 0 {
         return Err(Error::value("--frames", "must be at least 1"));
     }
-    let mut passes = Passes::default();
-    let mut session = Session::new(scene, &mut passes)?;
+    let mut session = crate::render::Session::new(scene, &mut Default::default())?;
     let base = scene.camera();
     let mut all: Vec<(String, Vec<u8>)> = vec![];
     let mut summaries = vec![];
     let mut folders = vec![];
     for i in 0..frames {
         let camera = crate::studies::views::path_camera(&base, i, step);
-        let (frame, _) = session.frame(&camera, &mut passes)?;
-        let (image, _) = draw(&frame, &RenderOptions::default(), &mut passes);
-        let src = Source {
-            scene: name,
-            scene_text: text,
-            camera: &camera,
-            frame: &frame,
-            image: &image,
-            world: &session.world,
-            clipmap: session.lod.clipmap(),
-        };
-        let files = files(&src)?;
+        let (frame, files) = view_files(&mut session, name, text, &camera)?;
         let folder = if frames == 1 {
             ".".to_string()
         } else {
@@ -953,29 +974,9 @@ pub fn conformance_pack(golden: &Path, out: &Path) -> Result<PackWritten> {
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned());
         let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
         let scene = crate::scene::Scene::load(&path)?;
-        let mut passes = crate::frame::stats::Passes::default();
-        let mut session = crate::render::Session::new(&scene, &mut passes)?;
-        let camera = scene.camera();
-        let (frame, _) = session.frame(&camera, &mut passes)?;
-        let (image, _) = crate::render::draw(
-            &frame,
-            &crate::render::RenderOptions::default(),
-            &mut passes,
-        );
-        let src = Source {
-            scene: &name,
-            scene_text: Some(&text),
-            camera: &camera,
-            frame: &frame,
-            image: &image,
-            world: &session.world,
-            clipmap: session.lod.clipmap(),
-        };
-        all.extend(
-            files(&src)?
-                .into_iter()
-                .map(|(n, b)| (format!("{name}/{n}"), b)),
-        );
+        let mut session = crate::render::Session::new(&scene, &mut Default::default())?;
+        let (_, files) = view_files(&mut session, &name, Some(&text), &scene.camera())?;
+        all.extend(files.into_iter().map(|(n, b)| (format!("{name}/{n}"), b)));
         scenes.push(name);
     }
     all.push(("README.md".into(), PACK_README.as_bytes().to_vec()));
