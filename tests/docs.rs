@@ -193,6 +193,7 @@ fn every_json_key_is_in_docs_cli_md() {
     }
     // An export to compare with: its own colour and depth pass.
     let (golden_pack, export_dir) = (s(&tmp("pack")), s(&tmp("export")));
+    let export_part = s(&tmp("export-part"));
     let (one_frame, compare_out) = (s(&tmp("one-frame")), s(&tmp("compare")));
     let (one_frame_png, one_frame_depth) = (
         format!("{one_frame}/colour.png"),
@@ -243,7 +244,20 @@ fn every_json_key_is_in_docs_cli_md() {
         ),
         (
             "export",
-            vec![vec!["export", "--size", "48x27", "--out", &export_dir]],
+            vec![
+                vec!["export", "--size", "48x27", "--out", &export_dir],
+                vec![
+                    "export",
+                    "--size",
+                    "32x18",
+                    "--frames",
+                    "2",
+                    "--shard",
+                    "1/2",
+                    "--out",
+                    &export_part,
+                ],
+            ],
         ),
         (
             "compare",
@@ -308,20 +322,38 @@ fn every_json_key_is_in_docs_cli_md() {
         ),
         (
             "tradeoff",
-            vec![vec![
-                "tradeoff",
-                "--quick",
-                "--size",
-                "32x18",
-                "--path-frames",
-                "2",
-                "--heightmap",
-                jacksboro,
-                "--out",
-                &tradeoff_out,
-            ]],
+            vec![
+                vec![
+                    "tradeoff",
+                    "--quick",
+                    "--size",
+                    "32x18",
+                    "--path-frames",
+                    "2",
+                    "--heightmap",
+                    jacksboro,
+                    "--out",
+                    &tradeoff_out,
+                ],
+                vec![
+                    "tradeoff",
+                    "--quick",
+                    "--size",
+                    "32x18",
+                    "--path-frames",
+                    "2",
+                    "--shard",
+                    "5/6",
+                ],
+            ],
         ),
-        ("fly", vec![vec!["fly", "--frames", "2", "--size", "32x18"]]),
+        (
+            "fly",
+            vec![
+                vec!["fly", "--frames", "2", "--size", "32x18"],
+                vec!["fly", "--frames", "2", "--size", "32x18", "--shard", "1/2"],
+            ],
+        ),
         (
             "cracks",
             vec![

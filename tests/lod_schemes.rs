@@ -12,6 +12,9 @@ use terraclip::lod::{Lod, View};
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::scene::camera::Camera;
 use terraclip::scene::{Effect, Scene};
+use terraclip::studies::shard::Shard;
+
+const WHOLE: Shard = Shard::WHOLE;
 use terraclip::terrain::world::WorldMap;
 
 mod common;
@@ -171,6 +174,7 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
         size: [64, 36],
         path_frames: 4,
         quick: true,
+        shard: WHOLE,
     };
     let r = terraclip::studies::tradeoff::run(&scene(), &opts, |_| {}).unwrap();
     for lod in [
@@ -221,7 +225,7 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     );
     // The CSV and the chart hold every row.
     let dir = std::env::temp_dir().join(format!("terraclip-tradeoff-{}", std::process::id()));
-    terraclip::studies::tradeoff::write(&r, &dir, "test").unwrap();
+    terraclip::studies::tradeoff::write(&r, &dir).unwrap();
     let csv = std::fs::read_to_string(dir.join("tradeoff.csv")).unwrap();
     assert_eq!(csv.lines().count(), r.rows.len() + 1);
     let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).unwrap();
@@ -240,9 +244,9 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
 #[test]
 fn fly_reports_updates_and_sees_pops_without_morph() {
     let mut s = scene();
-    let on = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, |_, _| Ok(())).unwrap();
+    let on = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, WHOLE, |_, _| Ok(())).unwrap();
     s.effects.retain(|e| *e != Effect::Morph);
-    let off = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, |_, _| Ok(())).unwrap();
+    let off = terraclip::studies::fly::fly(&s, (24, 0), 3.0, true, WHOLE, |_, _| Ok(())).unwrap();
     assert_eq!(on.frames.len(), 24);
     assert!(on.texels_updated > 0, "the clipmap never updated");
     let mean = |r: &terraclip::studies::fly::FlyReport| {
@@ -266,6 +270,7 @@ fn fly_reports_updates_and_sees_pops_without_morph() {
         (3, 0),
         7.0,
         true,
+        WHOLE,
         |_, _| Ok(()),
     )
     .unwrap();

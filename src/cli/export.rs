@@ -4,6 +4,7 @@
 use super::SceneArgs;
 use serde_json::json;
 use std::path::PathBuf;
+use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -21,6 +22,10 @@ pub struct Args {
     pub step: f64,
     #[command(flatten)]
     pub args: SceneArgs,
+    /// Export part i of N of the frames, a run of them in order, as
+    /// frame folders (`merge --dir` joins the parts' folders).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     #[arg(long)]
     pub json: bool,
 }
@@ -41,8 +46,22 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if !a.step.is_finite() {
         anyhow::bail!("--step: must be a finite number of metres, not {}", a.step);
     }
-    let w = terraclip::export::scene(&scene, &name, text.as_deref(), a.frames, a.step, &a.out)?;
-    super::report(a.json, json!(w), || {
+    let w = terraclip::export::scene_part(
+        &scene,
+        &name,
+        text.as_deref(),
+        a.frames,
+        a.step,
+        a.shard,
+        &a.out,
+    )?;
+    let of = format!(
+        "{} --frames {} --step {}",
+        a.args.describe(&a.scene),
+        a.frames,
+        a.step
+    );
+    super::report(a.json, shard::tag(json!(w), "export", a.shard, &of), || {
         let tris: usize = w.frames.iter().map(|f| f.triangles).sum();
         format!(
             "wrote {} ({} frame(s) of {}, {} triangles, {} files, {} bytes)",

@@ -4,6 +4,7 @@ use super::{progress, SceneArgs};
 use std::path::PathBuf;
 use terraclip::error::write_atomic;
 use terraclip::studies::fly;
+use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -29,6 +30,10 @@ pub struct Args {
     pub no_popping: bool,
     #[command(flatten)]
     pub args: SceneArgs,
+    /// Fly part i of N of the frames, a run of them in order (`merge
+    /// --dir` joins the parts' JSON and draws the charts).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     #[arg(long)]
     pub json: bool,
 }
@@ -46,13 +51,17 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.gif && a.out.is_none() {
         anyhow::bail!("--gif needs --out DIR");
     }
+    if a.gif && !a.shard.is_whole() {
+        anyhow::bail!("--gif is of the whole flight: it does not take --shard (each part writes its frames' PNGs)");
+    }
     let s = a.args.scene(&a.scene)?;
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
     }
-    let bar = progress(a.frames + a.still, "fly");
+    let bar = progress(a.shard.run_of(a.frames + a.still).len(), "fly");
     let mut kept = Vec::new();
-    let report = fly::fly(&s, (a.frames, a.still), a.step, !a.no_popping, |i, img| {
+    let flight = (a.frames, a.still);
+    let report = fly::fly(&s, flight, a.step, !a.no_popping, a.shard, |i, img| {
         bar.inc(1);
         if let Some(dir) = &a.out {
             write_atomic(&dir.join(format!("frame_{i:04}.png")), &img.png()?)?;
@@ -66,14 +75,21 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if let (Some(dir), true) = (&a.out, a.gif) {
         write_atomic(&dir.join("fly.gif"), &fly::gif(&kept)?)?;
     }
-    if let Some(dir) = &a.out {
-        for (name, chart) in fly::charts(&report) {
-            write_atomic(&dir.join(format!("{name}.svg")), chart.svg().as_bytes())?;
-            write_atomic(&dir.join(format!("{name}.png")), &chart.png()?)?;
-        }
+    // A part's charts would show only its frames: the merge draws them.
+    if let (Some(dir), true) = (&a.out, a.shard.is_whole()) {
+        fly::write_charts(&report, dir)?;
     }
     if a.json {
-        println!("{}", serde_json::to_value(&report)?);
+        let of = format!(
+            "{} --frames {} --still {} --step {} --no-popping {}",
+            a.args.describe(&a.scene),
+            a.frames,
+            a.still,
+            a.step,
+            a.no_popping
+        );
+        let v = shard::tag(serde_json::to_value(&report)?, "fly", a.shard, &of);
+        println!("{v}");
     } else {
         println!(
             "{} frames of {}: mean update {:.3} ms, {} texels rewritten, popping max {:.3}",

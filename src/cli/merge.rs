@@ -1,6 +1,7 @@
 //! `terraclip merge`: joins the JSON of a sweep's shards (`--shard i/N` of
-//! `cracks`, `golden` or `check-gpu`)
-//! into what one run of the sweep prints.
+//! `cracks`, `golden`, `check-gpu`, `tradeoff`, `fly` or `export`) into
+//! what one run of the sweep prints, and with `--dir` writes the files
+//! only the whole sweep has.
 
 use std::path::PathBuf;
 
@@ -12,6 +13,11 @@ pub struct Args {
     /// Also write the merged JSON here.
     #[arg(short, long)]
     pub out: Option<PathBuf>,
+    /// Write the files one run writes into this folder: tradeoff's CSV and
+    /// charts, fly's charts, or the joined export folder (which an
+    /// export's merge needs).
+    #[arg(long)]
+    pub dir: Option<PathBuf>,
     /// (The merged JSON is printed either way.)
     #[arg(long)]
     pub json: bool,
@@ -28,7 +34,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             })?;
         parts.push((p.display().to_string(), v));
     }
-    let merged = terraclip::studies::shard::merge(&parts)?;
+    let merged = terraclip::studies::shard::merge(&parts, a.dir.as_deref())?;
     if let Some(out) = &a.out {
         terraclip::error::write_atomic(out, format!("{merged}\n").as_bytes())?;
     }

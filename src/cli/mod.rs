@@ -77,6 +77,15 @@ impl SceneArgs {
         }
     }
 
+    /// The scene at `path` and these overrides, in words: what every
+    /// shard of one sweep must share (`shard.of`).
+    pub fn describe(&self, path: &Option<PathBuf>) -> String {
+        let scene = path
+            .as_ref()
+            .map_or("<default scene>".into(), |p| p.display().to_string());
+        format!("{scene} {:?}", self.overrides())
+    }
+
     /// The scene at `path` (the embedded one if none) with these overrides.
     /// A heightmap given without `--camera` or `--look-at` is framed: the
     /// scene's camera, far plane and fog were placed for its own terrain.

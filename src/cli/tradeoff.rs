@@ -3,6 +3,7 @@
 
 use super::{progress, SceneArgs};
 use std::path::PathBuf;
+use terraclip::studies::shard::{self, Shard};
 use terraclip::studies::tradeoff;
 
 #[derive(clap::Args, Debug)]
@@ -20,6 +21,10 @@ pub struct Args {
     /// Fewer settings per scheme.
     #[arg(long)]
     pub quick: bool,
+    /// Measure part i of N of the settings (`merge --dir` joins the
+    /// parts' JSON and writes the CSV and charts).
+    #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
+    pub shard: Shard,
     #[arg(long)]
     pub json: bool,
 }
@@ -39,21 +44,34 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         size,
         path_frames: a.path_frames,
         quick: a.quick,
+        shard: a.shard,
     };
     let count = tradeoff::settings(&s, a.quick)?.len();
-    let bar = progress(count, "tradeoff");
-    let report = tradeoff::run(&s, &opts, |label| {
+    let mine = (0..count).filter(|&k| a.shard.owns(k)).count();
+    let bar = progress(mine, "tradeoff");
+    let mut report = tradeoff::run(&s, &opts, |label| {
         bar.set_message(label.to_string());
         bar.inc(1);
     })?;
     bar.finish_and_clear();
-    let title = match &a.args.heightmap {
+    report.title = match &a.args.heightmap {
         Some(h) => format!("{} at {}x{}", h.display(), size[0], size[1]),
         None => format!("{} at {}x{}", s.origin, size[0], size[1]),
     };
-    tradeoff::write(&report, &a.out, &title)?;
+    // A part's front and budget are its own rows': its CSV and charts
+    // would mislead, so only the merge writes them.
+    if a.shard.is_whole() {
+        tradeoff::write(&report, &a.out)?;
+    }
     if a.json {
-        println!("{}", serde_json::to_value(&report)?);
+        let of = format!(
+            "{} --path-frames {} --quick {}",
+            a.args.describe(&a.scene),
+            a.path_frames,
+            a.quick
+        );
+        let v = shard::tag(serde_json::to_value(&report)?, "tradeoff", a.shard, &of);
+        println!("{v}");
         return Ok(());
     }
     println!(
@@ -84,6 +102,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             report.budget_ms
         ),
     }
-    println!("wrote {}/tradeoff.{{csv,svg,png}}", a.out.display());
+    if a.shard.is_whole() {
+        println!("wrote {}/tradeoff.{{csv,svg,png}}", a.out.display());
+    } else {
+        println!(
+            "part {}/{}: the front and budget above are this part's; `terraclip merge` the parts' --json output with --dir for the sweep's CSV and charts",
+            a.shard.index, a.shard.count
+        );
+    }
     Ok(())
 }

@@ -34,6 +34,7 @@ use crate::scene::Effect;
 use crate::shade::normal_map::NormalMap;
 use crate::shade::shadows::Lightmap;
 use crate::shade::{Effects, Layout, Resources, ShadeParams};
+use crate::studies::shard::Shard;
 use crate::terrain::world::WorldMap;
 use exr::FloatLayer;
 use serde::{Deserialize, Serialize};
@@ -555,6 +556,27 @@ pub struct Exported {
 }
 
 /// Reads `name` in `dir`, checked against the manifest's length and hash.
+/// The manifest of the export folder `dir`, in a format this terraclip
+/// reads.
+fn open_manifest(dir: &Path) -> Result<Manifest> {
+    let mpath = dir.join("manifest.json");
+    if !dir.is_dir() {
+        return Err(Error::file(dir, "not a folder (an export is a folder)"));
+    }
+    let mbytes = std::fs::read(&mpath).map_err(|e| Error::io(&mpath, e))?;
+    let manifest: Manifest = parse(dir, "manifest.json", &mbytes)?;
+    if manifest.format != FORMAT || manifest.version != VERSION {
+        return Err(Error::file(
+            &mpath,
+            format!(
+                "format '{}' version {}, where this terraclip reads '{FORMAT}' version {VERSION}",
+                manifest.format, manifest.version
+            ),
+        ));
+    }
+    Ok(manifest)
+}
+
 fn checked(dir: &Path, m: &Manifest, name: &str) -> Result<Vec<u8>> {
     let path = dir.join(name);
     let entry = m
@@ -618,21 +640,7 @@ fn channel<'a>(path: &Path, l: &'a FloatLayer, name: &str) -> Result<&'a [f32]> 
 /// Reads the one-frame export in `dir`, checking every file against the
 /// manifest first; a folder of frames is an error that names them.
 pub fn read(dir: &Path) -> Result<Exported> {
-    let mpath = dir.join("manifest.json");
-    if !dir.is_dir() {
-        return Err(Error::file(dir, "not a folder (an export is a folder)"));
-    }
-    let mbytes = std::fs::read(&mpath).map_err(|e| Error::io(&mpath, e))?;
-    let manifest: Manifest = parse(dir, "manifest.json", &mbytes)?;
-    if manifest.format != FORMAT || manifest.version != VERSION {
-        return Err(Error::file(
-            &mpath,
-            format!(
-                "format '{}' version {}, where this terraclip reads '{FORMAT}' version {VERSION}",
-                manifest.format, manifest.version
-            ),
-        ));
-    }
+    let manifest = open_manifest(dir)?;
     if let Some(first) = manifest.frames.first() {
         return Err(Error::file(
             dir,
@@ -852,7 +860,7 @@ fn view_files(
 }
 
 /// One exported frame, as `terraclip export --json` reports it.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct FrameSummary {
     /// Its folder inside the export (`.` for a one-frame export).
     pub folder: String,
@@ -867,7 +875,7 @@ pub struct FrameSummary {
 }
 
 /// What [`scene`] wrote.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Written {
     /// The export folder.
     pub dir: PathBuf,
@@ -894,18 +902,52 @@ pub fn scene(
     step: f64,
     dir: &Path,
 ) -> Result<Written> {
+    scene_part(scene, name, text, frames, step, Shard::WHOLE, dir)
+}
+
+/// [`scene`]'s part `shard` of the frames ([`Shard::run_of`]), always as
+/// frame folders when there are several frames; `merge` joins the parts
+/// ([`join`]).
+pub fn scene_part(
+    scene: &crate::scene::Scene,
+    name: &str,
+    text: Option<&str>,
+    frames: usize,
+    step: f64,
+    shard: Shard,
+    dir: &Path,
+) -> Result<Written> {
     if frames == 0 {
         return Err(Error::value("--frames", "must be at least 1"));
     }
+    if frames < shard.count {
+        return Err(Error::value(
+            "--shard",
+            format!(
+                "{} parts of {frames} frame(s) would leave parts with none: use at most {frames}",
+                shard.count
+            ),
+        ));
+    }
+    // A part is a run of frame folders, even of one frame, so that `merge`
+    // can put the parts' folders side by side.
+    let folders_each = frames > 1;
     let mut session = crate::render::Session::new(scene, &mut Default::default())?;
     let base = scene.camera();
     let mut all: Vec<(String, Vec<u8>)> = vec![];
     let mut summaries = vec![];
     let mut folders = vec![];
-    for i in 0..frames {
+    let mine = shard.run_of(frames);
+    for i in 0..mine.end {
         let camera = crate::studies::views::path_camera(&base, i, step);
+        // The scheme moves through the frames before this part's as it
+        // would in one run.
+        if i < mine.start {
+            session.update(&camera, &mut Default::default());
+            continue;
+        }
         let (frame, files) = view_files(&mut session, name, text, &camera)?;
-        let folder = if frames == 1 {
+        let folder = if !folders_each {
             ".".to_string()
         } else {
             format!("frame-{i:04}")
@@ -923,14 +965,26 @@ pub fn scene(
             colour_sha256: sha("colour.png"),
             depth_sha256: sha("depth.f32"),
         });
-        if frames == 1 {
+        if !folders_each {
             all = files;
         } else {
             all.extend(files.into_iter().map(|(n, b)| (format!("{folder}/{n}"), b)));
             folders.push(folder);
         }
     }
-    if frames > 1 {
+    written(name, folders_each.then_some(folders), all, summaries, dir)
+}
+
+/// Writes `all` (with a manifest over the `folders` of a path's frames)
+/// as the export `dir`, and says what it wrote.
+fn written(
+    name: &str,
+    folders: Option<Vec<String>>,
+    mut all: Files,
+    frames: Vec<FrameSummary>,
+    dir: &Path,
+) -> Result<Written> {
+    if let Some(folders) = folders {
         let m = manifest(name, folders, &all);
         all.push(("manifest.json".into(), to_json(&m)?));
     }
@@ -938,10 +992,57 @@ pub fn scene(
     Ok(Written {
         dir: dir.to_path_buf(),
         scene: name.into(),
-        frames: summaries,
+        frames,
         files: all.len(),
         bytes: all.iter().map(|f| f.1.len() as u64).sum(),
     })
+}
+
+/// Joins the folders the parts of a sharded export wrote (`parts`, their
+/// JSON in part order) into the export one run writes, at `dir`. Every
+/// file is checked against its part's manifest first.
+pub fn join(parts: &[Written], dir: &Path) -> Result<Written> {
+    let first = parts
+        .first()
+        .ok_or_else(|| Error::value("merge", "no parts"))?;
+    let (mut all, mut folders, mut frames): (Files, Vec<String>, Vec<FrameSummary>) =
+        (vec![], vec![], vec![]);
+    for p in parts {
+        if p.scene != first.scene {
+            return Err(Error::file(
+                &p.dir,
+                format!(
+                    "an export of {}, where the first part's is of {}",
+                    p.scene, first.scene
+                ),
+            ));
+        }
+        let m = open_manifest(&p.dir)?;
+        let listed: Vec<&str> = p.frames.iter().map(|f| f.folder.as_str()).collect();
+        if m.frames != listed {
+            return Err(Error::file(
+                p.dir.join("manifest.json"),
+                format!(
+                    "frames {:?}, where the part's JSON says {listed:?}",
+                    m.frames
+                ),
+            ));
+        }
+        for e in &m.files {
+            all.push((e.name.clone(), checked(&p.dir, &m, &e.name)?));
+        }
+        folders.extend(m.frames);
+        frames.extend(p.frames.iter().cloned());
+    }
+    for (k, f) in folders.iter().enumerate() {
+        if *f != format!("frame-{k:04}") {
+            return Err(Error::value(
+                "merge",
+                format!("{f} is where frame-{k:04} should be: parts missing or out of order"),
+            ));
+        }
+    }
+    written(&first.scene, Some(folders), all, frames, dir)
 }
 
 /// What [`conformance_pack`] wrote.

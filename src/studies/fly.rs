@@ -7,11 +7,12 @@ use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, Session};
 use crate::scene::{LodScheme, Scene};
 use crate::studies::metrics;
+use crate::studies::shard::Shard;
 use crate::studies::views;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One frame of a fly-through (`fly --json` `frames`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct FlyFrame {
     /// Frame number from 0.
     pub frame: usize,
@@ -40,7 +41,7 @@ pub struct FlyFrame {
 }
 
 /// A fly-through: per-frame costs and popping along a straight path.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct FlyReport {
     /// The scheme flown.
     pub lod: String,
@@ -60,11 +61,15 @@ pub struct FlyReport {
 /// Flies `frames` frames from the scene's camera, `step` metres per frame
 /// (views::path), then holds the last camera for `still` frames (where a
 /// budget-limited update catches up). `each` gets every frame's image.
+/// A `shard` draws its run of the frames ([`Shard::run_of`]); before it,
+/// the LOD scheme is only updated, and the frame just before is drawn
+/// unreported, for its popping.
 pub fn fly(
     scene: &Scene,
     (frames, still): (usize, usize),
     step: f64,
     popping: bool,
+    shard: Shard,
     mut each: impl FnMut(usize, &Image) -> Result<()>,
 ) -> Result<FlyReport> {
     let opts = RenderOptions::default();
@@ -83,7 +88,12 @@ pub fn fly(
     if let Some(&last) = cams.last() {
         cams.extend(std::iter::repeat_n(last, still));
     }
-    for (i, cam) in cams.iter().enumerate() {
+    let mine = shard.run_of(cams.len());
+    for (i, cam) in cams.iter().enumerate().take(mine.end) {
+        if i + 1 < mine.start {
+            session.update(cam, &mut Passes::default());
+            continue;
+        }
         let (img, stats) = session.render(cam, &opts, Passes::default())?;
         let reference = match &mut brute {
             Some(b) => Some(b.render(cam, &opts, Passes::default())?.0),
@@ -95,6 +105,10 @@ pub fn fly(
             (Some((p, Some(pr))), Some(r)) => metrics::popping([p, &img], [pr, r]),
             _ => 0.0,
         };
+        if i < mine.start {
+            prev = Some((img, reference));
+            continue;
+        }
         out.push(FlyFrame {
             frame: i,
             ms: stats.ms_total,
@@ -111,15 +125,56 @@ pub fn fly(
         each(i, &img)?;
         prev = Some((img, reference));
     }
-    let later = &out[1.min(out.len())..];
-    Ok(FlyReport {
-        lod: session.lod.name().to_string(),
+    Ok(summary(
+        session.lod.name().to_string(),
+        out,
+        crate::studies::scaling::peak_rss().unwrap_or(0),
+    ))
+}
+
+/// The report over `frames`; the first frame of the flight builds, so the
+/// update figures leave it out.
+fn summary(lod: String, frames: Vec<FlyFrame>, peak_rss_bytes: u64) -> FlyReport {
+    let later: Vec<&FlyFrame> = frames.iter().filter(|f| f.frame > 0).collect();
+    FlyReport {
+        lod,
         mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
         texels_updated: later.iter().map(|f| f.texels_updated).sum(),
-        popping_max: out.iter().map(|f| f.popping).fold(0.0, f64::max),
-        peak_rss_bytes: crate::studies::scaling::peak_rss().unwrap_or(0),
-        frames: out,
-    })
+        popping_max: frames.iter().map(|f| f.popping).fold(0.0, f64::max),
+        peak_rss_bytes,
+        frames,
+    }
+}
+
+/// The parts' reports (in part order) as one flight's: their runs of
+/// frames one after another, the peak memory the largest part's.
+pub fn merge(parts: &[FlyReport]) -> std::result::Result<FlyReport, String> {
+    let first = parts.first().ok_or("no parts")?;
+    let frames: Vec<FlyFrame> = parts.iter().flat_map(|p| p.frames.clone()).collect();
+    if let Some((k, f)) = frames.iter().enumerate().find(|(k, f)| f.frame != *k) {
+        return Err(format!(
+            "frame {} is where frame {k} should be: parts missing or out of order",
+            f.frame
+        ));
+    }
+    if let Some(p) = parts.iter().find(|p| p.lod != first.lod) {
+        return Err(format!("parts flew {} and {}", first.lod, p.lod));
+    }
+    let rss = parts.iter().map(|p| p.peak_rss_bytes).max().unwrap_or(0);
+    Ok(summary(first.lod.clone(), frames, rss))
+}
+
+/// Writes the [`charts`] into `dir` as SVG and PNG (each atomically).
+pub fn write_charts(r: &FlyReport, dir: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    for (name, chart) in charts(r) {
+        let w = |ext: &str, bytes: &[u8]| {
+            crate::error::write_atomic(&dir.join(format!("{name}.{ext}")), bytes)
+        };
+        w("svg", chart.svg().as_bytes())?;
+        w("png", &chart.png()?)?;
+    }
+    Ok(())
 }
 
 /// Charts of a flight against the frame: each frame's time (the whole

@@ -4,14 +4,16 @@
 //! a Slurm job array or a shell loop starts the parts
 //! (docs/verify-your-renderer.md shows each).
 //!
-//! A part owns the items `k` with `k mod N = i` (views, scenes), so the
-//! parts take turns through the sweep and each gets a fair share of its
-//! slow and fast items. A part's JSON carries a `shard` object: the
+//! A part owns the items `k` with `k mod N = i` (views, scenes, settings),
+//! so the parts take turns through the sweep and each gets a fair share of
+//! its slow and fast items. Paths (`fly`, `export`) are cut into runs of
+//! frames instead ([`Shard::run_of`]): a frame follows from the one before. A part's JSON carries a `shard` object: the
 //! command, `index`, `count`, and `of`, the settings every part must share.
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
+use std::path::Path;
 
 /// Part `index` of `count`, from `--shard i/N` (0 ≤ i < N).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -55,6 +57,14 @@ impl Shard {
         k % self.count == self.index
     }
 
+    /// This part's run of `total` items in order, for sweeps along a path
+    /// (`fly`, `export`), where each frame follows from the ones before:
+    /// a part owns frames `[i·total/N, (i+1)·total/N)` and moves the LOD
+    /// scheme through the frames before them without drawing them.
+    pub fn run_of(&self, total: usize) -> std::ops::Range<usize> {
+        self.index * total / self.count..(self.index + 1) * total / self.count
+    }
+
     /// Whether this is the whole sweep.
     pub fn is_whole(&self) -> bool {
         self.count == 1
@@ -93,8 +103,11 @@ fn bad(what: &str, why: impl Into<String>) -> Error {
 
 /// Joins the parts' JSON (each tagged by [`tag`], named by `names` in
 /// errors) into what one run of the sweep prints: every part of one sweep,
-/// once each, with the same settings.
-pub fn merge(parts: &[(String, Value)]) -> Result<Value> {
+/// once each, with the same settings. With `dir`, also writes there the
+/// files one run writes that only the whole sweep can: `tradeoff`'s CSV
+/// and charts, `fly`'s charts, and `export`'s folder (which an export's
+/// merge needs: its parts are folders).
+pub fn merge(parts: &[(String, Value)], dir: Option<&Path>) -> Result<Value> {
     let mut tags = vec![];
     for (name, v) in parts {
         let t: ShardTag = serde_json::from_value(v["shard"].clone())
@@ -130,38 +143,95 @@ pub fn merge(parts: &[(String, Value)]) -> Result<Value> {
     order.sort_by_key(|&k| tags[k].index);
     let values: Vec<&Value> = order.iter().map(|&k| &parts[k].1).collect();
     let names: Vec<&str> = order.iter().map(|&k| parts[k].0.as_str()).collect();
-    match first.command.as_str() {
-        "cracks" => Ok(crate::studies::cracks::merge(&values)),
-        "golden" | "check-gpu" => interleave(&values, &names, "scenes"),
-        c => Err(bad("parts", format!("'{c}' has no merge"))),
+    let command = first.command.as_str();
+    match (command, dir) {
+        ("cracks", None) => Ok(crate::studies::cracks::merge(&values)),
+        ("golden" | "check-gpu", None) => interleave(&values, &names, "scenes"),
+        ("tradeoff", _) => {
+            let r = crate::studies::tradeoff::merge(&typed(&values, &names)?)
+                .map_err(|why| bad("parts", why))?;
+            if let Some(dir) = dir {
+                crate::studies::tradeoff::write(&r, dir)?;
+            }
+            to_value(&r)
+        }
+        ("fly", _) => {
+            let r = crate::studies::fly::merge(&typed(&values, &names)?)
+                .map_err(|why| bad("parts", why))?;
+            if let Some(dir) = dir {
+                crate::studies::fly::write_charts(&r, dir)?;
+            }
+            to_value(&r)
+        }
+        ("export", Some(dir)) => to_value(&crate::export::join(&typed(&values, &names)?, dir)?),
+        ("export", None) => Err(bad(
+            "--dir",
+            "an export's parts are folders: name the folder to join them into",
+        )),
+        (_, Some(_)) => Err(bad(
+            "--dir",
+            format!("{command}'s parts have no files to join: leave --dir out"),
+        )),
+        _ => Err(bad("parts", format!("'{command}' has no merge"))),
     }
 }
 
-/// The parts' lists under `key` put back in sweep order (item k is item
-/// k / N of part k mod N), under the keys the parts share, which must
+/// The parts' JSON as `T`s (a study's report), their `shard` tags left out.
+fn typed<T: serde::de::DeserializeOwned>(values: &[&Value], names: &[&str]) -> Result<Vec<T>> {
+    values
+        .iter()
+        .zip(names)
+        .map(|(v, name)| {
+            let mut v = (*v).clone();
+            if let Some(o) = v.as_object_mut() {
+                o.remove("shard");
+            }
+            serde_json::from_value(v)
+                .map_err(|e| bad(name, format!("not what its command prints: {e}")))
+        })
+        .collect()
+}
+
+fn to_value(v: &impl Serialize) -> Result<Value> {
+    serde_json::to_value(v).map_err(|e| Error::value("merge", e.to_string()))
+}
+
+/// The parts' items (in part order) put back in sweep order: item k is
+/// item k / N of part k mod N, so part i must hold ⌈(total − i) / N⌉.
+pub fn interleave_items<'a, T>(lists: &[&'a [T]]) -> std::result::Result<Vec<&'a T>, String> {
+    let n = lists.len();
+    let total: usize = lists.iter().map(|l| l.len()).sum();
+    for (i, l) in lists.iter().enumerate() {
+        let share = (total + n - 1 - i) / n;
+        if l.len() != share {
+            return Err(format!(
+                "part {i} has {} items where its share of {total} is {share}",
+                l.len()
+            ));
+        }
+    }
+    Ok((0..total).map(|k| &lists[k % n][k / n]).collect())
+}
+
+/// The parts' lists under `key` put back in sweep order
+/// ([`interleave_items`]), under the keys the parts share, which must
 /// agree: parts run on different adapters are not one sweep.
 fn interleave(parts: &[&Value], names: &[&str], key: &str) -> Result<Value> {
-    let lists: Vec<&Vec<Value>> = parts
+    let lists: Vec<&[Value]> = parts
         .iter()
         .zip(names)
         .map(|(v, name)| {
             v[key]
                 .as_array()
+                .map(Vec::as_slice)
                 .ok_or_else(|| bad(name, format!("no '{key}' list")))
         })
         .collect::<Result<_>>()?;
-    let total: usize = lists.iter().map(|l| l.len()).sum();
-    let n = parts.len();
-    let mut items = Vec::with_capacity(total);
-    for k in 0..total {
-        let item = lists[k % n].get(k / n).ok_or_else(|| {
-            bad(
-                names[k % n],
-                format!("part {} has too few items for its share", k % n),
-            )
-        })?;
-        items.push(item.clone());
-    }
+    let items: Vec<Value> = interleave_items(&lists)
+        .map_err(|why| bad("parts", why))?
+        .into_iter()
+        .cloned()
+        .collect();
     let rest = |v: &Value| {
         let mut v = v.clone();
         if let Some(o) = v.as_object_mut() {

@@ -16,8 +16,9 @@ use crate::render::{Image, RenderOptions, RenderStats, Session};
 use crate::scene::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics;
+use crate::studies::shard::Shard;
 use crate::studies::views::{self, NamedView};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One scheme at one setting.
 #[derive(Clone, Debug)]
@@ -34,7 +35,7 @@ pub struct Setting {
 }
 
 /// One row of the report (the JSON `rows`).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Row {
     /// Series name: the scheme, or "supersample".
     pub lod: String,
@@ -68,15 +69,17 @@ pub struct Row {
     /// Largest per-frame popping along the path (RMS, 0–255 units).
     pub popping: f64,
     /// "brute-force" or "64x same mesh".
-    pub reference: &'static str,
+    pub reference: String,
     /// On the Pareto front of (ms, rmse) among brute-force-referenced rows.
     pub pareto: bool,
 }
 
 /// The report: rows, and the answer to "within 1/10 of brute force's time,
 /// which scheme has the lowest RMSE?".
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct Report {
+    /// The charts' title: the terrain and the image size.
+    pub title: String,
     /// The views' names, wide first.
     pub views: Vec<String>,
     /// Image width and height.
@@ -100,6 +103,8 @@ pub struct Options {
     pub path_frames: usize,
     /// Fewer settings per scheme (for tests).
     pub quick: bool,
+    /// The settings measured: k with k mod N = i of [`settings`].
+    pub shard: Shard,
 }
 
 fn variant(
@@ -317,7 +322,11 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
     }
     drop(probe);
     let mut rows = Vec::new();
-    for st in &settings {
+    let mine = settings
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| opts.shard.owns(*k));
+    for (_, st) in mine {
         let mut session = session_for(&st.scene, opts.size, st.samples)?;
         let mut reference_session = if st.samples > 1 || st.lod == "supersample" {
             Some(session_for(&st.scene, opts.size, 64)?)
@@ -331,14 +340,19 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             // their steady-state update, not a rebuild.
             let back = views::path_camera(&v.camera, 1, -0.5 * cell);
             shot(&mut session, &back, st.samples)?;
-            // The median of three timed frames of the view (the machines
-            // are noisy); the image is the same each time.
+            // Times are the median of three frames of the view (the
+            // machines are noisy). The image and triangles are the last
+            // frame's whatever the timing: a scheme that refines over
+            // frames (ROAM's queues) draws each frame differently.
             let mut timed = Vec::new();
             for _ in 0..3 {
                 timed.push(shot(&mut session, &v.camera, st.samples)?);
             }
-            timed.sort_by(|a, b| a.1.ms_total.total_cmp(&b.1.ms_total));
-            let (img, stats) = timed.swap_remove(1);
+            let mut ms_order = [0, 1, 2];
+            ms_order.sort_by(|&a, &b| timed[a].1.ms_total.total_cmp(&timed[b].1.ms_total));
+            let stats = timed[ms_order[1]].1.clone();
+            let (img, last) = timed.pop().expect("three frames");
+            let triangles = last.triangles;
             let reference = match &mut reference_session {
                 Some(r) => shot(r, &v.camera, 64)?.0,
                 None => bf_views[i].clone(),
@@ -350,7 +364,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             parts[2] += stats.pass_ms(&["vertex", "normals", "normal-map", "lightmap"]);
             parts[3] += stats.pass_ms(&["raster"]);
             parts[4] += stats.pass_ms(&["shade"]);
-            tris += stats.triangles as f64;
+            tris += triangles as f64;
         }
         // Popping along the path (brute-force referenced settings only).
         let mut popping = 0.0f64;
@@ -394,11 +408,29 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
                 "64x same mesh"
             } else {
                 "brute-force"
-            },
+            }
+            .into(),
             pareto: false,
         });
         tick(&format!("{} {}", st.lod, st.config));
     }
+    Ok(finish(
+        views.iter().map(|v| v.name.clone()).collect(),
+        opts.size,
+        path.len(),
+        rows,
+    ))
+}
+
+/// The report of `rows`: the Pareto front, brute force's budget and the
+/// best row within it are worked out over the rows given, so a shard's
+/// report answers for its own rows and [`merge`] answers for the sweep.
+pub fn finish(
+    views: Vec<String>,
+    size: [u32; 2],
+    path_frames: usize,
+    mut rows: Vec<Row>,
+) -> Report {
     mark_pareto(&mut rows);
     let budget_ms = rows
         .iter()
@@ -409,13 +441,38 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
         .filter(|r| r.reference == "brute-force" && r.lod != "brute-force" && r.ms <= budget_ms)
         .min_by(|a, b| a.rmse.total_cmp(&b.rmse))
         .cloned();
-    Ok(Report {
-        views: views.iter().map(|v| v.name.clone()).collect(),
-        size: opts.size,
-        path_frames: path.len(),
+    Report {
+        title: String::new(),
+        views,
+        size,
+        path_frames,
         rows,
         budget_ms,
         best_in_budget,
+    }
+}
+
+/// The parts' reports (in part order) as one run's: their rows put back
+/// in sweep order, then [`finish`]ed over the whole sweep.
+pub fn merge(parts: &[Report]) -> std::result::Result<Report, String> {
+    let first = parts.first().ok_or("no parts")?;
+    for (i, p) in parts.iter().enumerate() {
+        if (&p.views, p.size, p.path_frames) != (&first.views, first.size, first.path_frames) {
+            return Err(format!(
+                "part {i} measured other views, sizes or paths than part 0"
+            ));
+        }
+    }
+    let lists: Vec<&[Row]> = parts.iter().map(|p| p.rows.as_slice()).collect();
+    let rows = crate::studies::shard::interleave_items(&lists)?;
+    Ok(Report {
+        title: first.title.clone(),
+        ..finish(
+            first.views.clone(),
+            first.size,
+            first.path_frames,
+            rows.into_iter().cloned().collect(),
+        )
     })
 }
 
@@ -466,7 +523,7 @@ pub fn csv(rows: &[Row]) -> String {
 }
 
 /// Error against time, one series per scheme, the Pareto front marked.
-pub fn chart(report: &Report, title: &str) -> crate::studies::report::chart::Chart {
+pub fn chart(report: &Report) -> crate::studies::report::chart::Chart {
     use crate::studies::report::chart::{Chart, Series};
     let mut series: Vec<Series> = Vec::new();
     for r in &report.rows {
@@ -486,7 +543,7 @@ pub fn chart(report: &Report, title: &str) -> crate::studies::report::chart::Cha
         .collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
     Chart {
-        title: title.to_string(),
+        title: report.title.clone(),
         x_label: "ms per frame (log)".into(),
         y_label: "RMSE vs reference (8-bit)".into(),
         series,
@@ -496,9 +553,9 @@ pub fn chart(report: &Report, title: &str) -> crate::studies::report::chart::Cha
 }
 
 /// Writes `tradeoff.csv`, `.svg` and `.png` into `dir` (each atomically).
-pub fn write(report: &Report, dir: &std::path::Path, title: &str) -> Result<()> {
+pub fn write(report: &Report, dir: &std::path::Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
-    let c = chart(report, title);
+    let c = chart(report);
     crate::error::write_atomic(&dir.join("tradeoff.csv"), csv(&report.rows).as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff.svg"), c.svg().as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff.png"), &c.png()?)?;
@@ -526,7 +583,7 @@ mod tests {
             depth_m: 0.0,
             triangles: 0.0,
             popping: 0.0,
-            reference: "brute-force",
+            reference: "brute-force".into(),
             pareto: false,
         }
     }
