@@ -35,7 +35,11 @@ use uniforms::{
 };
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("shaders/terrain.wgsl");
+/// The terrain shader, after the helpers it shares with the update pass.
+pub(crate) const SHADER: &str = concat!(
+    include_str!("shaders/wrap.wgsl"),
+    include_str!("shaders/terrain.wgsl")
+);
 /// Bytes of one `Draw` uniform slot (the dynamic-offset alignment).
 const DRAW_STRIDE: u64 = 256;
 

@@ -83,6 +83,17 @@ fn write(gpu: &Gpu, t: &wgpu::Texture, at: [u32; 3], size: [u32; 2], data: &[u8]
     );
 }
 
+/// Array layers for `levels` toroids: one each, and one unused more when
+/// that would make a multiple of 6. wgpu's GL back end fixes a texture's
+/// GL target when it is made, from its shape alone: a square 2D texture
+/// with 6k layers becomes a cube map (wgpu-hal's `gles`
+/// `Texture::get_info_from_desc`), and a cube map bound where the shader
+/// reads a 2D array reads zeros. On GL, a 6-level clipmap drew flat.
+fn array_layers(levels: usize) -> u32 {
+    let extra = usize::from(levels % 6 == 0);
+    (levels + extra) as u32
+}
+
 /// One n×n layer per clipmap level, mirroring each level's toroid.
 pub struct ToroidTextures {
     pub heights: wgpu::Texture,
@@ -123,8 +134,8 @@ impl ToroidTextures {
         let n = cm.n() as usize;
         let layers = cm.levels().len();
         let fresh = self.n != n || self.layers != layers;
+        let size = [n as u32, n as u32, array_layers(layers)];
         if fresh {
-            let size = [n as u32, n as u32, layers as u32];
             self.heights = toroid_texture(gpu, size, wgpu::TextureFormat::R32Float, "heights");
             self.n = n;
             self.layers = layers;
@@ -132,7 +143,6 @@ impl ToroidTextures {
         }
         let full_gradients = need_gradients && !self.has_gradients;
         if full_gradients {
-            let size = [n as u32, n as u32, layers as u32];
             self.gradients = toroid_texture(gpu, size, wgpu::TextureFormat::Rg32Float, "slopes");
             self.has_gradients = true;
         }
@@ -486,4 +496,13 @@ pub fn read_back(
         rgba,
         depth,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn toroid_arrays_never_have_a_multiple_of_6_layers() {
+        let layers: Vec<u32> = (1..=13).map(super::array_layers).collect();
+        assert_eq!(layers, [1, 2, 3, 4, 5, 7, 7, 8, 9, 10, 11, 13, 13]);
+    }
 }

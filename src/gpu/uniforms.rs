@@ -94,7 +94,7 @@ mod tests {
     use std::mem::{offset_of, size_of};
 
     fn shader() -> naga::Module {
-        naga::front::wgsl::parse_str(include_str!("shaders/terrain.wgsl")).expect("WGSL parses")
+        naga::front::wgsl::parse_str(crate::gpu::SHADER).expect("WGSL parses")
     }
 
     /// (name, offset, size) of each member of WGSL struct `name`, and its

@@ -17,7 +17,10 @@ use crate::synthesis::{NoiseTable, STRETCH};
 use crate::terrain::world::WorldMap;
 use wgpu::util::DeviceExt;
 
-const SHADER: &str = include_str!("shaders/update.wgsl");
+const SHADER: &str = concat!(
+    include_str!("shaders/wrap.wgsl"),
+    include_str!("shaders/update.wgsl")
+);
 
 /// The shader's uniforms, one set per dirty rectangle.
 #[repr(C)]

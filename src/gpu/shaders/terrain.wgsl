@@ -148,18 +148,14 @@ fn fog_exp2(x_in: f32) -> f32 {
     return p * bitcast<f32>(u32(i32(i) + 127) << 23u);
 }
 
-fn toroid(v: i32, n: i32) -> i32 {
-    return ((v % n) + n) % n;
-}
-
 fn height(x: i32, y: i32, l: i32) -> f32 {
     let n = D.level.z;
-    return textureLoad(heights, vec2<i32>(toroid(x, n), toroid(y, n)), l, 0).x;
+    return textureLoad(heights, vec2<i32>(wrap(x, n), wrap(y, n)), l, 0).x;
 }
 
 fn gradient(x: i32, y: i32, l: i32) -> vec2<f32> {
     let n = D.level.z;
-    return textureLoad(gradients, vec2<i32>(toroid(x, n), toroid(y, n)), l, 0).xy;
+    return textureLoad(gradients, vec2<i32>(wrap(x, n), wrap(y, n)), l, 0).xy;
 }
 
 // clipmap::morph::coarse_sample over heights of level l + 1.
@@ -225,7 +221,7 @@ fn local_coords(vid: u32) -> vec2<i32> {
     if (D.level.w == MODE_STRIPS) {
         let idx = strips[vid];
         let t = vec2<i32>(i32(idx % u32(n)), i32(idx / u32(n)));
-        c = vec2<i32>(toroid(t.x - D.origin.z, n), toroid(t.y - D.origin.w, n));
+        c = vec2<i32>(wrap(t.x - D.origin.z, n), wrap(t.y - D.origin.w, n));
     } else {
         c = footprints[vid] + D.rel.zw;
     }

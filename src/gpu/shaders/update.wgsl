@@ -27,10 +27,6 @@ struct Synth {
 @group(0) @binding(3) var fine: texture_storage_2d<r32float, write>;
 @group(0) @binding(4) var slopes: texture_storage_2d<rg32float, write>;
 
-fn wrap(v: i32, n: i32) -> i32 {
-    return ((v % n) + n) % n;
-}
-
 // Coarse sample (i, j), clamped to the coarse level, from its toroid.
 fn c(i: i32, j: i32) -> f32 {
     let n = s.grid.x;
