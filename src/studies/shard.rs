@@ -252,3 +252,177 @@ fn interleave(parts: &[&Value], names: &[&str], key: &str) -> Result<Value> {
     out[key] = Value::Array(items);
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    #[test]
+    fn specs_parse_and_bad_ones_say_why() {
+        assert_eq!(Shard::parse("2/5"), Ok(Shard { index: 2, count: 5 }));
+        assert_eq!(Shard::parse(" 0 / 1 "), Ok(Shard::WHOLE));
+        for (spec, why) in [
+            ("0/0", "at least 1"),
+            ("5/4", "0 to 3, so 5"),
+            ("4/4", "0 to 3, so 4"),
+            ("1", "a shard is i/N"),
+            ("a/2", "'a' is not a whole number"),
+            ("1/b", "'b' is not a whole number"),
+            ("-1/2", "'-1' is not a whole number"),
+        ] {
+            let e = Shard::parse(spec).unwrap_err();
+            assert!(e.contains(why) && e.contains(spec), "{spec}: {e}");
+        }
+    }
+
+    #[test]
+    fn parts_own_every_item_once() {
+        let n = 3;
+        for total in [0usize, 1, 2, 7, 10] {
+            let mut owned = vec![0; total];
+            let mut runs = vec![];
+            for index in 0..n {
+                let s = Shard { index, count: n };
+                assert!(!s.is_whole());
+                for (k, o) in owned.iter_mut().enumerate() {
+                    *o += usize::from(s.owns(k));
+                }
+                runs.push(s.run_of(total));
+            }
+            assert!(owned.iter().all(|&o| o == 1), "{total}: {owned:?}");
+            // The runs are consecutive, cover 0..total and differ by at
+            // most one in length.
+            assert_eq!(runs[0].start, 0);
+            assert_eq!(runs[n - 1].end, total);
+            for w in runs.windows(2) {
+                assert_eq!(w[0].end, w[1].start, "{total}: {runs:?}");
+            }
+            let lens: Vec<usize> = runs.iter().map(|r| r.len()).collect();
+            let (lo, hi) = (lens.iter().min().unwrap(), lens.iter().max().unwrap());
+            assert!(hi - lo <= 1, "{total}: {lens:?}");
+        }
+        assert_eq!(Shard { index: 1, count: 3 }.run_of(10), 3..6);
+        assert_eq!(Shard { index: 2, count: 3 }.run_of(10), 6..10);
+        assert_eq!(Shard::WHOLE.run_of(4), 0..4);
+        assert!(Shard::WHOLE.is_whole() && Shard::WHOLE.owns(5));
+        assert!(!Shard { index: 1, count: 2 }.owns(4));
+    }
+
+    #[test]
+    fn only_a_part_is_tagged() {
+        let v = json!({"scenes": []});
+        assert_eq!(tag(v.clone(), "golden", Shard::WHOLE, "x"), v);
+        let t = tag(v, "golden", Shard { index: 1, count: 2 }, "x");
+        assert_eq!(
+            t["shard"],
+            json!({"command": "golden", "index": 1, "count": 2, "of": "x"})
+        );
+    }
+
+    #[test]
+    fn items_go_back_in_sweep_order_and_short_parts_are_errors() {
+        let (a, b, c) = ([0, 3, 6], [1, 4], [2, 5]);
+        let got: Vec<i32> = interleave_items(&[&a[..], &b[..], &c[..]])
+            .unwrap()
+            .into_iter()
+            .copied()
+            .collect();
+        assert_eq!(got, [0, 1, 2, 3, 4, 5, 6]);
+        let e = interleave_items(&[&a[..], &c[..2], &b[..1]]).unwrap_err();
+        assert!(
+            e.contains("part 0 has 3 items where its share of 6 is 2"),
+            "{e}"
+        );
+        let e = interleave_items(&[&b[..], &a[..]]).unwrap_err();
+        assert!(
+            e.contains("part 0 has 2 items where its share of 5 is 3"),
+            "{e}"
+        );
+    }
+
+    /// Part `index` of `count` of a golden sweep holding `scenes`.
+    fn golden(index: usize, count: usize, scenes: &[&str], adapter: &str) -> (String, Value) {
+        let v = json!({"adapter": adapter, "scenes": scenes});
+        let s = Shard { index, count };
+        (format!("p{index}"), tag(v, "golden", s, "goldens"))
+    }
+
+    fn err(parts: &[(String, Value)], dir: Option<&Path>) -> String {
+        merge(parts, dir).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn merges_interleave_and_refuse_what_is_not_one_sweep() {
+        let parts = [
+            golden(1, 2, &["b", "d"], "x"),
+            golden(0, 2, &["a", "c", "e"], "x"),
+        ];
+        let m = merge(&parts, None).unwrap();
+        assert_eq!(
+            m,
+            json!({"adapter": "x", "scenes": ["a", "b", "c", "d", "e"]})
+        );
+        let other_adapter = [golden(0, 2, &["a"], "x"), golden(1, 2, &["b"], "y")];
+        assert!(err(&other_adapter, None).contains("p1: its other keys differ"));
+        let twice = [golden(0, 2, &["a"], "x"), golden(0, 2, &["a"], "x")];
+        assert!(err(&twice, None).contains("part 0 given twice"));
+        let missing = [golden(1, 3, &["b"], "x"), golden(0, 3, &["a"], "x")];
+        assert!(err(&missing, None).contains("part 2 of 3 is missing"));
+        let other_count = [golden(0, 2, &["a"], "x"), golden(1, 3, &["b"], "x")];
+        assert!(err(&other_count, None).contains("p1: part of another sweep"));
+        let untagged = [
+            golden(0, 2, &["a"], "x"),
+            ("w".into(), json!({"scenes": []})),
+        ];
+        assert!(err(&untagged, None).contains("w: not a shard's JSON"));
+        assert!(err(&[], None).contains("none given"));
+        let dir = Path::new("/nonexistent/terraclip-merge");
+        assert!(err(&parts, Some(dir)).contains("golden's parts have no files to join"));
+        let unknown = [
+            (
+                "u".into(),
+                tag(json!({}), "render", Shard { index: 0, count: 2 }, ""),
+            ),
+            (
+                "v".into(),
+                tag(json!({}), "render", Shard { index: 1, count: 2 }, ""),
+            ),
+        ];
+        assert!(err(&unknown, None).contains("'render' has no merge"));
+        let two = |command: &str, v: Value| {
+            let p = |i| {
+                (
+                    format!("{command}{i}"),
+                    tag(v.clone(), command, Shard { index: i, count: 2 }, ""),
+                )
+            };
+            [p(0), p(1)]
+        };
+        let export = two("export", json!({}));
+        assert!(err(&export, None).contains("name the folder to join them into"));
+        let bad_fly = two("f", json!({"lod": 3}));
+        assert!(err(&bad_fly, None).contains("'f' has no merge"));
+        let bad_fly = two("fly", json!({"lod": 3}));
+        assert!(err(&bad_fly, None).contains("fly0: not what its command prints"));
+        let bad_tradeoff = two("tradeoff", json!({"rows": 1}));
+        assert!(err(&bad_tradeoff, None).contains("tradeoff0: not what its command prints"));
+    }
+
+    #[test]
+    fn a_list_key_that_is_missing_is_named() {
+        let parts = [
+            golden(0, 2, &["a"], "x"),
+            (
+                "p1".into(),
+                tag(
+                    json!({"adapter": "x"}),
+                    "golden",
+                    Shard { index: 1, count: 2 },
+                    "goldens",
+                ),
+            ),
+        ];
+        assert!(err(&parts, None).contains("p1: no 'scenes' list"));
+    }
+}
