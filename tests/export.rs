@@ -238,11 +238,16 @@ fn export_replaces_an_export_and_refuses_anything_else() {
         "mine"
     );
     assert_eq!(std::fs::read_dir(&other).unwrap().count(), 1);
-    // No temporary folder is left beside either.
+    // No temporary folder is left beside either. (Other tests write their
+    // own exports in the same parent at the same time, so only this
+    // test's names count.)
     let left: Vec<_> = std::fs::read_dir(dir.parent().unwrap())
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .filter(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            name.contains(".tmp-") && name.contains("replace")
+        })
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
