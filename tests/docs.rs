@@ -194,6 +194,14 @@ fn every_json_key_is_in_docs_cli_md() {
     // An export to compare with: its own colour and depth pass.
     let (golden_pack, export_dir) = (s(&tmp("pack")), s(&tmp("export")));
     let export_part = s(&tmp("export-part"));
+    let quick_tradeoff = [
+        "tradeoff",
+        "--quick",
+        "--size",
+        "32x18",
+        "--path-frames",
+        "2",
+    ];
     let (one_frame, compare_out) = (s(&tmp("one-frame")), s(&tmp("compare")));
     let (one_frame_png, one_frame_depth) = (
         format!("{one_frame}/colour.png"),
@@ -323,28 +331,12 @@ fn every_json_key_is_in_docs_cli_md() {
         (
             "tradeoff",
             vec![
-                vec![
-                    "tradeoff",
-                    "--quick",
-                    "--size",
-                    "32x18",
-                    "--path-frames",
-                    "2",
-                    "--heightmap",
-                    jacksboro,
-                    "--out",
-                    &tradeoff_out,
-                ],
-                vec![
-                    "tradeoff",
-                    "--quick",
-                    "--size",
-                    "32x18",
-                    "--path-frames",
-                    "2",
-                    "--shard",
-                    "5/6",
-                ],
+                [
+                    &quick_tradeoff[..],
+                    &["--heightmap", jacksboro, "--out", &tradeoff_out],
+                ]
+                .concat(),
+                [&quick_tradeoff[..], &["--shard", "5/6"]].concat(),
             ],
         ),
         (
