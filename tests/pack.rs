@@ -5,7 +5,7 @@
 mod common;
 
 use std::path::Path;
-use terraclip::pack::{Lattice, Packed, Quant};
+use terraclip::pack::{Lattice, Packed, Predictor, Quant};
 use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
 use terraclip::terrain::Heightmap;
 
@@ -101,12 +101,20 @@ fn a_lossless_pack_gives_the_same_bits() {
     assert!(same_bits(&src[..1], &decoded[..1]));
 }
 
+/// Both predictors: the lifting one's stencils stay inside the tile, the
+/// upsampling one reads only the coarser level.
 #[test]
 fn a_tile_decoded_alone_equals_its_part_of_the_level() {
     let map = common::terrain(8, 203, 130);
     let src = levels_of(&map);
-    let (packed, recon) = Packed::encode(&src, 1.0, 16, None);
-    for l in 0..src.len() {
+    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+        let (packed, recon) = Packed::encode_with(&src, 1.0, 16, None, predictor);
+        tiles_alone_equal_levels(&packed, &recon);
+    }
+}
+
+fn tiles_alone_equal_levels(packed: &Packed, recon: &[PyramidLevel]) {
+    for l in 0..recon.len() {
         let coarse = recon.get(l + 1).unwrap_or(&recon[l]);
         let [nx, ny] = packed.tiles_of(l);
         for ty in 0..ny {
@@ -143,10 +151,13 @@ fn the_no_data_mask_is_coded() {
         .collect();
     let map = Heightmap::from_values(70, 50, values, None, [1.0; 2], "test").unwrap();
     let src = levels_of(&map);
-    let (packed, _) = Packed::encode(&src, 1.0, 8, None);
-    let decoded = packed.decode().unwrap();
-    assert_eq!(decoded[0].nodata, mask);
-    assert!(worst(&src, &decoded) <= 1.0);
+    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+        let (packed, _) = Packed::encode_with(&src, 1.0, 8, None, predictor);
+        let decoded = packed.decode().unwrap();
+        assert_eq!(decoded[0].nodata, mask);
+        // `worst` checks every level's mask too.
+        assert!(worst(&src, &decoded) <= 1.0);
+    }
 }
 
 #[test]

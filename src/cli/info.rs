@@ -49,14 +49,15 @@ fn pack_info(a: &Args) -> anyhow::Result<()> {
         "width": w, "height": hh, "format": "tcz", "levels": h.levels(),
         "max_error": h.max_error, "tile": h.tile, "bytes": bytes, "tiles": tiles,
         "cell_size": h.cell_size, "cell_size_m": h.cell_size, "filter": h.filter,
-        "source": h.source,
+        "source": h.source, "predictor": h.predictor().name(),
     });
     super::report(a.json, v, || {
         format!(
-            "{}: pack of {w}×{hh}, {} levels, max error {} m, {tiles} tiles of {}², {bytes} bytes, from {}",
+            "{}: pack of {w}×{hh}, {} levels, max error {} m ({} prediction), {tiles} tiles of {}², {bytes} bytes, from {}",
             a.heightmap.display(),
             h.levels(),
             h.max_error,
+            h.predictor().name(),
             h.tile,
             h.source
         )

@@ -4,7 +4,7 @@
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
-use terraclip::pack::stream;
+use terraclip::pack::{stream, Predictor};
 use terraclip::pyramid::Filter;
 use terraclip::scene::Scene;
 use terraclip::terrain::rows::{self, RowSource};
@@ -23,11 +23,21 @@ pub struct Args {
     /// The filter the coarser levels are made with.
     #[arg(long, default_value = "sinc-blackman", value_parser = Filter::parse)]
     pub filter: Filter,
+    /// What the finer levels are predicted from: `lifting` (the smaller
+    /// code) or `upsampled` (LH04's four-point upsampling of the coarser
+    /// level alone, which `[gpu] update = "gpu"` rebuilds on the GPU from
+    /// uploaded residuals; needs --max-error > 0).
+    #[arg(long, default_value = "lifting", value_parser = parse_predictor)]
+    pub predictor: Predictor,
     /// Tile side in samples (even, 2..=4096).
     #[arg(long, default_value_t = 128)]
     pub tile: usize,
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_predictor(s: &str) -> Result<Predictor, String> {
+    Predictor::parse(s).ok_or_else(|| format!("unknown predictor {s:?} (lifting or upsampled)"))
 }
 
 /// The input as rows: a scene's terrain, or a heightmap file.
@@ -50,11 +60,17 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if !(2..=4096).contains(&a.tile) || a.tile % 2 != 0 {
         anyhow::bail!("--tile must be even and within 2..=4096, got {}", a.tile);
     }
+    if a.predictor == Predictor::Upsampled && a.max_error == 0.0 {
+        anyhow::bail!(
+            "--predictor upsampled needs --max-error > 0: its f32 sums p + q·s cannot rebuild every map bit for bit (a lossless pack uses lifting)"
+        );
+    }
     let t = Instant::now();
     let src = source(&a.input)?;
     let [w, h] = src.size();
     let source_name = a.input.display().to_string();
-    let opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
+    let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
+    opts.predictor = a.predictor;
     let bar = super::progress(0, "pack");
     let summary = stream::pack(src.as_ref(), &a.out, &opts, &mut |done, total| {
         bar.set_length(total);
@@ -73,6 +89,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "output": a.out, "width": w, "height": h,
         "levels": levels, "max_error": a.max_error,
         "max_error_seen": worst, "tile": a.tile, "bytes": bytes,
+        "predictor": a.predictor.name(),
         "ratio": ratio, "ms": ms,
         "peak_rss_bytes": terraclip::studies::scaling::peak_rss(),
     });

@@ -54,7 +54,53 @@ pub enum Quant {
     },
     /// Lossless on the f32 bit patterns, as ordered integers.
     Bits,
+    /// Bounded error against [`Predictor::Upsampled`]'s prediction, in f32:
+    /// each sample decodes to `p + q·s` with `s` = 2·`max_error` as f32 and
+    /// the residual |q| < 2^24, so that a GPU pass given `q` repeats the
+    /// sum bit for bit.
+    Upsampled {
+        /// The bound E, metres (height units).
+        max_error: f64,
+    },
 }
+
+/// What a finer level's samples are predicted from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Predictor {
+    /// Phase by phase, as a lifting scheme does: the samples on the
+    /// coarse grid from the coarser level, the rest by four-point
+    /// interpolation of the level's own samples decoded before ([`predict`]
+    /// says how). The smaller code.
+    #[default]
+    Lifting,
+    /// Every sample from the coarser level alone, by its four-point
+    /// upsampling (LH04's tensor prediction), reconstructed in f32: any
+    /// rectangle of the level is then the coarser level around it plus
+    /// the residuals, which is what the GPU update pass rebuilds from
+    /// (`[gpu] update = "gpu"`). Bounded error only (`max_error` > 0).
+    Upsampled,
+}
+
+impl Predictor {
+    /// Its name on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Predictor::Lifting => "lifting",
+            Predictor::Upsampled => "upsampled",
+        }
+    }
+
+    /// The predictor called `name`.
+    pub fn parse(name: &str) -> Option<Predictor> {
+        [Predictor::Lifting, Predictor::Upsampled]
+            .into_iter()
+            .find(|p| p.name() == name)
+    }
+}
+
+/// Largest |residual| an upsampled level codes as a residual: its f32
+/// value is exact, so shader and CPU multiply the same number.
+const UPSAMPLED_Q: f64 = (1u32 << 24) as f64;
 
 /// f32 bits as an integer that orders like the value.
 fn ordered(v: f32) -> i64 {
@@ -86,10 +132,15 @@ impl Quant {
             rec: x,
         };
         match *self {
-            Quant::Step { max_error } => {
-                let s = 2.0 * max_error;
+            Quant::Step { max_error } | Quant::Upsampled { max_error } => {
+                // The step as the reconstruction multiplies it, and the
+                // largest residual it takes.
+                let (s, limit) = match self {
+                    Quant::Upsampled { .. } => ((2.0 * max_error) as f32 as f64, UPSAMPLED_Q - 2.0),
+                    _ => (2.0 * max_error, 1e15),
+                };
                 let q = ((x as f64 - p) / s).round();
-                if !q.is_finite() || q.abs() > 1e15 {
+                if !q.is_finite() || q.abs() > limit {
                     return raw;
                 }
                 let q = q as i64;
@@ -129,7 +180,7 @@ impl Quant {
     /// One residual step near `p`, in height units.
     fn unit(&self, p: f64) -> f64 {
         match *self {
-            Quant::Step { max_error } => 2.0 * max_error,
+            Quant::Step { max_error } | Quant::Upsampled { max_error } => 2.0 * max_error,
             Quant::Lattice { scale, .. } => scale,
             Quant::Bits => {
                 let v = (p as f32).abs();
@@ -143,6 +194,12 @@ impl Quant {
     fn rec(&self, p: f64, q: i64) -> f32 {
         match *self {
             Quant::Step { max_error } => (p + q as f64 * (2.0 * max_error)) as f32,
+            // The product then the sum, each rounded to f32: the shader's
+            // `p + f32(q) * s` (p is an f32 prediction widened).
+            Quant::Upsampled { max_error } => {
+                let s = (2.0 * max_error) as f32;
+                p as f32 + q as f32 * s
+            }
             Quant::Lattice { offset, scale } => {
                 let kp = ((p - offset) / scale).round() as i64;
                 (offset + kp.saturating_add(q) as f64 * scale) as f32
@@ -183,11 +240,19 @@ impl Coarse for Rows<'_> {
 }
 
 /// The rows of the coarser level (`coarse_height` rows) that predicting
-/// fine rows `[y0, y1)` reads: each even fine row 2j reads coarse rows
-/// j − 1 ..= j + 1.
-pub fn coarse_rows(coarse_height: usize, y0: usize, y1: usize) -> std::ops::Range<usize> {
+/// fine rows `[y0, y1)` of a level quantised by `quant` reads: fine rows
+/// 2j and 2j + 1 read coarse rows j − 1 ..= j + 1 when lifting, and
+/// j − 1 ..= j + 2 when upsampling (the four-point stencil between j and
+/// j + 1). The same holds for columns.
+pub fn coarse_rows(
+    coarse_height: usize,
+    y0: usize,
+    y1: usize,
+    quant: Quant,
+) -> std::ops::Range<usize> {
     let last = coarse_height - 1;
-    (y0 / 2).saturating_sub(1).min(last)..((y1 - 1) / 2 + 1).min(last) + 1
+    let after = 1 + usize::from(matches!(quant, Quant::Upsampled { .. }));
+    (y0 / 2).saturating_sub(1).min(last)..((y1 - 1) / 2 + after).min(last) + 1
 }
 
 /// One level as coded.
@@ -463,6 +528,20 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             segments.push(n);
             rec
         }
+        Some(coarse) if matches!(quant, Quant::Upsampled { .. }) => {
+            // One pass in row-major order: no sample is predicted from the
+            // level's own.
+            let (mut pred, mut act, mut phase) = (Vec::new(), Vec::new(), Vec::new());
+            predict::upsampled(coarse, rect, &mut pred, &mut act, &mut phase);
+            let t = thresholds(quant.unit(0.0));
+            let mut rec = vec![0f32; n];
+            for (i, r) in rec.iter_mut().enumerate() {
+                let c = context(phase[i] as usize, act[i], &t);
+                *r = code(at(i % w, i / w), pred[i], c);
+            }
+            segments.push(n);
+            rec
+        }
         Some(coarse) => {
             let mut planes = Planes::new(w, h);
             let (mut pred, mut act) = (Vec::new(), Vec::new());
@@ -585,6 +664,7 @@ pub(crate) struct Scratch {
     pred: Vec<f64>,
     act: Vec<f64>,
     class: Vec<u64>,
+    phases: Vec<u8>,
     models: Vec<u8>,
     sym: Vec<u16>,
     words: [Vec<u32>; STREAMS],
@@ -670,6 +750,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
         pred,
         act,
         class,
+        phases,
         models: mk,
         sym,
         words,
@@ -743,6 +824,20 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                 data[r * stride + ox..][..w].copy_from_slice(&rec[r * w..][..w]);
             }
         }
+        Some(coarse) if matches!(quant, Quant::Upsampled { .. }) => {
+            predict::upsampled(coarse, rect, pred, act, phases);
+            let t = thresholds(quant.unit(0.0));
+            mk.clear();
+            mk.extend(
+                act.iter()
+                    .zip(&*phases)
+                    .map(|(&a, &ph)| best[context(ph as usize, a, &t)]),
+            );
+            decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
+            for (i, (&s, &p)) in sym.iter().zip(&*pred).enumerate() {
+                data[place(i)] = value(s as usize, p)?;
+            }
+        }
         Some(coarse) => {
             planes.reset(w, h);
             for ph in 0..4 {
@@ -778,16 +873,23 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
 
 /// The quantisation of a level: bounded error when `max_error` > 0;
 /// otherwise lossless, on `lattice` where every sample lies on it.
-fn quant_for(level: &PyramidLevel, max_error: f64, lattice: Option<Lattice>) -> Quant {
+fn quant_for(
+    level: &PyramidLevel,
+    max_error: f64,
+    lattice: Option<Lattice>,
+    predictor: Predictor,
+) -> Quant {
     let lattice = usable(lattice)
         .filter(|&l| max_error == 0.0 && level.data.par_iter().all(|&x| on_lattice(x, l)));
-    quant(max_error, lattice)
+    quant(max_error, lattice, predictor)
 }
 
-/// The quantisation of a level coded to `max_error`, where every sample is
-/// known to lie on `lattice` (if any).
-pub(crate) fn quant(max_error: f64, lattice: Option<Lattice>) -> Quant {
+/// The quantisation of a level coded to `max_error` with `predictor`,
+/// where every sample is known to lie on `lattice` (if any). A lossless
+/// level is always predicted by lifting.
+pub(crate) fn quant(max_error: f64, lattice: Option<Lattice>, predictor: Predictor) -> Quant {
     match lattice {
+        _ if max_error > 0.0 && predictor == Predictor::Upsampled => Quant::Upsampled { max_error },
         _ if max_error > 0.0 => Quant::Step { max_error },
         Some(Lattice { offset, scale }) => Quant::Lattice { offset, scale },
         None => Quant::Bits,
@@ -818,12 +920,25 @@ impl Packed {
         tile: usize,
         lattice: Option<Lattice>,
     ) -> (Packed, Vec<PyramidLevel>) {
+        Self::encode_with(levels, max_error, tile, lattice, Predictor::Lifting)
+    }
+
+    /// [`Packed::encode`] with the finer levels predicted by `predictor`
+    /// (lifting where `max_error` is 0).
+    pub fn encode_with(
+        levels: &[PyramidLevel],
+        max_error: f64,
+        tile: usize,
+        lattice: Option<Lattice>,
+        predictor: Predictor,
+    ) -> (Packed, Vec<PyramidLevel>) {
         // Even, so a tile's local parity is the level's.
         let tile = tile.max(2).next_multiple_of(2);
         let mut packed: Vec<PackedLevel> = Vec::with_capacity(levels.len());
         let mut recon: Vec<PyramidLevel> = Vec::with_capacity(levels.len());
         for (l, src) in levels.iter().enumerate().rev() {
-            let quant = quant_for(src, max_error, if l == 0 { lattice } else { None });
+            let lattice = if l == 0 { lattice } else { None };
+            let quant = quant_for(src, max_error, lattice, predictor);
             let coarse = recon.last();
             let (tx, ty) = (src.width.div_ceil(tile), src.height.div_ceil(tile));
             let coded: Vec<(Vec<u8>, Vec<f32>)> = (0..tx * ty)

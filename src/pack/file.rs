@@ -70,6 +70,18 @@ impl Header {
     pub fn level_quant(&self, l: usize) -> Option<Quant> {
         self.levels.get(l).map(|s| s.quant)
     }
+    /// What the finer levels are predicted from.
+    pub fn predictor(&self) -> super::Predictor {
+        if self
+            .levels
+            .iter()
+            .any(|l| matches!(l.quant, Quant::Upsampled { .. }))
+        {
+            super::Predictor::Upsampled
+        } else {
+            super::Predictor::Lifting
+        }
+    }
     /// Level 0's least and greatest valid height, as decoded.
     pub fn range(&self) -> [f32; 2] {
         self.levels.first().map_or([0.0, 0.0], |l| l.range)

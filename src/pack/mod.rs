@@ -10,4 +10,4 @@ mod predict;
 pub mod reader;
 pub mod stream;
 
-pub use codec::{Lattice, Packed, PackedLevel, Quant, Tile, TileError};
+pub use codec::{Lattice, Packed, PackedLevel, Predictor, Quant, Tile, TileError};

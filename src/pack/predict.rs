@@ -225,3 +225,66 @@ fn along_row(e: &[f32], line: &mut Vec<f64>, pred: &mut [f64], act: &mut [f64]) 
         act[i] = a;
     }
 }
+
+/// The predictions of a tile of [`super::codec::Quant::Upsampled`]'s
+/// levels: every sample is the four-point upsampling of `coarse` (LH04's
+/// tensor prediction, the bits of [`crate::pyramid::subdivide`]), for the
+/// `w` × `h` tile whose first sample is (x0, y0) of its level. Writes, in
+/// row-major order, the predictions, the activities of the coarse samples
+/// each was interpolated from, and each sample's phase (`x & 1 | (y & 1)
+/// << 1`), which with the activity picks its context.
+pub(crate) fn upsampled<C: Coarse + ?Sized>(
+    coarse: &C,
+    (x0, y0, w, h): (usize, usize, usize, usize),
+    pred: &mut Vec<f64>,
+    act: &mut Vec<f64>,
+    phase: &mut Vec<u8>,
+) {
+    // The coarse samples the tile's stencils read, one before and two
+    // after, with the level's clamping done here: inside this crop the
+    // subdivision reads no sample past its edges, so it clamps nothing
+    // and gives the bits of the whole level's subdivision.
+    let (ci0, cj0) = ((x0 / 2) as i64 - 1, (y0 / 2) as i64 - 1);
+    let (cw, ch) = ((x0 + w - 1) / 2 + 4 - x0 / 2, (y0 + h - 1) / 2 + 4 - y0 / 2);
+    let last = coarse.width() as i64 - 1;
+    let mut data = Vec::with_capacity(cw * ch);
+    for j in 0..ch as i64 {
+        let row = coarse.row(cj0 + j);
+        data.extend((0..cw as i64).map(|i| row[(ci0 + i).clamp(0, last) as usize]));
+    }
+    let crop = crate::pyramid::PyramidLevel {
+        width: cw,
+        height: ch,
+        nodata: vec![false; data.len()],
+        data,
+        min: 0.0,
+        max: 0.0,
+    };
+    // Tile origins are even, so (2, 2) of the crop's subdivision is the
+    // tile's first sample with the same parity.
+    let (up, _) = crate::pyramid::subdivide::subdivide_window(&crop, [2, 2, w, h]);
+    pred.clear();
+    pred.extend(up.iter().map(|&v| v as f64));
+    // Activity: the steps between the coarse samples around each one, as
+    // the lifting predictor's phases measure them.
+    let c = |i: usize, j: usize| crop.data[j * cw + i] as f64;
+    act.clear();
+    phase.clear();
+    for y in 0..h {
+        // The coarse cell: (i, j) of the crop is coarse (x / 2, y / 2).
+        let j = y / 2 + 1;
+        for x in 0..w {
+            let i = x / 2 + 1;
+            let ph = (x & 1) | (y & 1) << 1;
+            let row = || four_point(c(i - 1, j), c(i, j), c(i + 1, j), c(i + 2, j)).1;
+            let col = || four_point(c(i, j - 1), c(i, j), c(i, j + 1), c(i, j + 2)).1;
+            act.push(match ph {
+                0 => (c(i + 1, j) - c(i - 1, j)).abs() + (c(i, j + 1) - c(i, j - 1)).abs(),
+                1 => row(),
+                2 => col(),
+                _ => (row() + col()) / 2.0,
+            });
+            phase.push(ph as u8);
+        }
+    }
+}

@@ -88,8 +88,9 @@ impl TileSource for PackReader {
         let [w, h] = self.header.level_size(l);
         let [cw, ch] = self.header.level_size(l + 1);
         let (x0, y0, tw, th) = tile_rect(w, h, self.header.tile, tx, ty);
-        let cols = coarse_rows(cw, x0, x0 + tw);
-        let rows = coarse_rows(ch, y0, y0 + th);
+        let q = self.quant[l];
+        let cols = coarse_rows(cw, x0, x0 + tw, q);
+        let rows = coarse_rows(ch, y0, y0 + th, q);
         Some([
             cols.start as i64,
             rows.start as i64,

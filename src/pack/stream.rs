@@ -19,7 +19,7 @@
 //!    temporary file and a rename. The bytes equal [`super::file::write`]'s
 //!    of [`super::Packed::encode`] on the same map (`tests/pack.rs`).
 
-use super::codec::{self, coarse_rows, encode_tile, tile_rect, Quant};
+use super::codec::{self, coarse_rows, encode_tile, tile_rect, Predictor, Quant};
 use super::file::{self, Header};
 use crate::error::{temp_path, write_atomic_with, Error, Result};
 use crate::pyramid::downsample::{self, Block, Scratch};
@@ -47,6 +47,8 @@ pub struct Options {
     pub tile: usize,
     /// The filter of the coarser levels.
     pub filter: Filter,
+    /// What the finer levels are predicted from.
+    pub predictor: Predictor,
     /// What the header names as the source.
     pub source: String,
     /// About the bytes of samples one band holds ([`BAND_BYTES`]; tests
@@ -61,6 +63,7 @@ impl Options {
             max_error,
             tile,
             filter,
+            predictor: Predictor::Lifting,
             source: source.to_string(),
             band_bytes: BAND_BYTES,
         }
@@ -339,6 +342,7 @@ pub fn pack(
         let quant = codec::quant(
             o.max_error,
             if l == 0 && on_lattice { lattice } else { None },
+            o.predictor,
         );
         quants[l] = quant;
         let body = Temp::create(out, &format!("-body{l}"))?;
@@ -354,7 +358,7 @@ pub fn pack(
             let rows = ty0 * tile..(ty1 * tile).min(h);
             let band = read(l, rows.clone())?;
             let coarse = match spills.get(l) {
-                Some(c) => Some(c.read(coarse_rows(c.height, rows.start, rows.end))?),
+                Some(c) => Some(c.read(coarse_rows(c.height, rows.start, rows.end, quant))?),
                 None => None,
             };
             let view = band.view(w, h);

@@ -16,6 +16,7 @@
 mod decoded;
 pub(crate) mod downsample;
 mod lazy;
+pub mod subdivide;
 
 use crate::terrain::Heightmap;
 pub use decoded::{Built, TileSource};

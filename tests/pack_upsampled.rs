@@ -1,0 +1,208 @@
+//! Packs whose finer levels are predicted by the four-point upsampling of
+//! the coarser level alone (`pack --predictor upsampled`): the error bound
+//! on every sample, the residual grid a GPU pass rebuilds from (every
+//! sample is the subdivision plus a whole number of f32 steps), streaming,
+//! and the errors. Tiles decoded alone and the no-data mask are tested
+//! for both predictors in `tests/pack.rs`.
+
+mod common;
+
+use std::path::Path;
+use std::process::Command;
+use terraclip::pack::{stream, Packed, Predictor, Quant};
+use terraclip::pyramid::subdivide::subdivide_window;
+use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
+use terraclip::terrain::Heightmap;
+
+fn levels_of(map: &Heightmap) -> Vec<PyramidLevel> {
+    Pyramid::build(map, Filter::default(), 64).levels
+}
+
+fn encode(src: &[PyramidLevel], e: f64, tile: usize) -> (Packed, Vec<PyramidLevel>) {
+    Packed::encode_with(src, e, tile, None, Predictor::Upsampled)
+}
+
+/// The subdivision of `coarse` at the size of a level `w` × `h` (a
+/// pyramid's finer level may be one sample narrower than 2w − 1, or
+/// wider: the stencils clamp either way).
+fn upsample(coarse: &PyramidLevel, w: usize, h: usize) -> Vec<f32> {
+    subdivide_window(coarse, [0, 0, w, h]).0
+}
+
+#[test]
+fn every_sample_is_within_the_bound_and_on_the_upsampled_grid() {
+    let map = common::terrain(3, 301, 157);
+    let src = levels_of(&map);
+    let mut sizes = vec![];
+    for e in [0.3, 0.5, 1.0, 4.0] {
+        let (packed, recon) = encode(&src, e, 64);
+        assert!(packed
+            .levels
+            .iter()
+            .all(|l| l.quant == Quant::Upsampled { max_error: e }));
+        let decoded = packed.decode().unwrap();
+        for (l, (s, d)) in src.iter().zip(&decoded).enumerate() {
+            assert_eq!(
+                d.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                recon[l]
+                    .data
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>(),
+                "E = {e}: level {l} decodes to the encoder's reconstruction"
+            );
+            let w = s
+                .data
+                .iter()
+                .zip(&d.data)
+                .map(|(&a, &b)| (a as f64 - b as f64).abs())
+                .fold(0.0, f64::max);
+            assert!(w <= e && w > e / 4.0, "E = {e}: level {l} worst {w}");
+        }
+        // What the GPU pass computes: p + f32(q) · s from the coarser
+        // level's subdivision p and a whole residual q, bit for bit.
+        let s = (2.0 * e) as f32;
+        let mut residuals = 0u64;
+        for l in 0..decoded.len() - 1 {
+            let d = &decoded[l];
+            let p = upsample(&decoded[l + 1], d.width, d.height);
+            for (i, (&h, &p)) in d.data.iter().zip(&p).enumerate() {
+                let q = ((h as f64 - p as f64) / s as f64).round() as f32;
+                assert_eq!(
+                    (p + q * s).to_bits(),
+                    h.to_bits(),
+                    "E = {e}: level {l} sample {i}: {h} is not {p} + {q}·{s}"
+                );
+                residuals += u64::from(q != 0.0);
+            }
+        }
+        assert!(residuals > 0);
+        sizes.push(packed.coded_bytes());
+    }
+    // Exact figures: the coder is deterministic (a change to the stencil,
+    // the contexts or the quantiser moves them).
+    assert_eq!(sizes, [36278, 30615, 23124, 10351]);
+}
+
+#[test]
+fn lossless_levels_are_lifted() {
+    let src = levels_of(&common::terrain(5, 65, 65));
+    let (packed, _) = encode(&src, 0.0, 32);
+    assert!(packed.levels.iter().all(|l| l.quant == Quant::Bits));
+}
+
+/// A path of this test target's, with no file left there by an earlier run.
+fn tmp(name: &str) -> std::path::PathBuf {
+    let p = common::fresh_tmp("pack_upsampled", name);
+    let _ = std::fs::remove_file(&p);
+    p
+}
+
+/// A streamed pack (in bands) is byte for byte the in-memory pack, and its
+/// header says how it was predicted.
+#[test]
+fn a_streamed_pack_equals_the_in_memory_pack() {
+    use terraclip::pack::file;
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let p = Procedural::new(7, 190, 77);
+    let map = p.generate().unwrap();
+    let levels = Pyramid::build(&map, Filter::default(), usize::MAX).levels;
+    let (packed, _) = encode(&levels, 1.0, 32);
+    let mem = tmp("mem.tcz");
+    file::write(&mem, &packed, map.cell_size, &Filter::default().name(), "p").unwrap();
+    let want = std::fs::read(&mem).unwrap();
+    for band in [usize::MAX / 8, 5_000] {
+        let out = tmp(&format!("stream-{band}.tcz"));
+        let mut o = stream::Options::new(1.0, 32, Filter::default(), "p");
+        o.predictor = Predictor::Upsampled;
+        o.band_bytes = band;
+        stream::pack(
+            &ProceduralRows::new(p.clone()).unwrap(),
+            &out,
+            &o,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert!(
+            std::fs::read(&out).unwrap() == want,
+            "bands of {band} bytes"
+        );
+    }
+    let (header, _) = file::read(&mem).unwrap();
+    assert_eq!(header.predictor(), Predictor::Upsampled);
+}
+
+fn terraclip(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn the_cli_packs_upsampled_and_refuses_it_lossless() {
+    let dem = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/jacksboro_16.png");
+    let out = tmp("jacksboro.tcz");
+    let (d, o) = (dem.to_str().unwrap(), out.to_str().unwrap());
+    let r = terraclip(&[
+        "pack",
+        d,
+        "-o",
+        o,
+        "--max-error",
+        "0",
+        "--predictor",
+        "upsampled",
+    ]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        !r.status.success() && err.contains("--max-error > 0"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"));
+    assert!(!out.exists());
+    let r = terraclip(&[
+        "pack",
+        d,
+        "-o",
+        o,
+        "--predictor",
+        "tensor",
+        "--max-error",
+        "1",
+    ]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("lifting or upsampled"));
+    let r = terraclip(&[
+        "pack",
+        d,
+        "-o",
+        o,
+        "--max-error",
+        "1",
+        "--predictor",
+        "upsampled",
+        "--json",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["predictor"], "upsampled");
+    assert_eq!(v["max_error_seen"].as_f64(), Some(1.0));
+    let r = terraclip(&["info", o, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["predictor"], "upsampled");
+    // Decoded back out, every sample is within the bound of the map.
+    let back = tmp("back.f32");
+    let r = terraclip(&["unpack", o, "-o", back.to_str().unwrap()]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let map = Heightmap::load(&dem).unwrap();
+    let got = Heightmap::load(&back).unwrap();
+    let worst = map
+        .data()
+        .iter()
+        .zip(got.data())
+        .map(|(&a, &b)| (a as f64 - b as f64).abs())
+        .fold(0.0, f64::max);
+    assert!(worst <= 1.0 && worst > 0.5, "{worst}");
+}
