@@ -169,6 +169,48 @@ fn the_gpu_update_pass_makes_the_cpus_texels() {
     }
 }
 
+/// A pack coded with `--predictor upsampled`: with `update = "gpu"` the
+/// GPU rebuilds its levels from the coarser level's toroid and uploaded
+/// residual codes, bit for bit the CPU's on lavapipe over a 100-frame
+/// path; only the coarsest level is uploaded as texels. The same scene
+/// over the lifting pack (`pack-lossy`'s) leaves every level to uploads.
+#[test]
+fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
+    use terraclip::pack::{stream, Predictor};
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let src = Scene::load(Path::new("golden/level-tint.toml")).unwrap();
+    let rows = terraclip::terrain::rows::for_terrain(&src.terrain, &src.base_dir).unwrap();
+    std::fs::create_dir_all(out()).unwrap();
+    let pack = out().join("procedural-513-e1-upsampled.tcz");
+    let mut o = stream::Options::new(1.0, 128, Default::default(), "level-tint");
+    o.predictor = Predictor::Upsampled;
+    stream::pack(rows.as_ref(), &pack, &o, &mut |_, _| {}).unwrap();
+    let mut scene = path_scene("pack-lossy");
+    scene.gpu.update = terraclip::scene::GpuUpdate::Gpu;
+    let lifting = parity::check(&mut r, &scene, "pack-lifting", 3, 37.0, &out(), exact).unwrap();
+    assert_eq!(lifting.texels_made, Some(0), "{lifting:?}");
+    scene.terrain.file = Some(pack);
+    let res = parity::check(&mut r, &scene, "pack-upsampled", 100, 37.0, &out(), exact).unwrap();
+    eprintln!("upsampled pack, gpu update: {res:?}");
+    assert!(res.pass, "{res:?}");
+    let t = res.texels.expect("texels checked");
+    let made = res.texels_made.unwrap();
+    let bytes = res.residual_bytes.unwrap();
+    assert!(t.checked > 1_000_000 && made > 30_000, "{res:?}");
+    // Two bytes a code, over each rectangle and a texel around it: under
+    // the 12 bytes (height and slope) a texel the CPU would upload.
+    assert!(bytes > 2 * made && bytes < 12 * made, "{res:?}");
+    if exact {
+        assert_eq!((t.differ, t.max_ulp), (0, 0));
+        assert_eq!(
+            (res.diff.colour_px_differ, res.diff.depth_px_differ),
+            (0, 0)
+        );
+        assert_eq!((made, res.texels_uploaded, bytes), (37_444, 248, 130_060));
+    }
+}
+
 /// The golden size, so the tests that show what fails run where the
 /// goldens do.
 const W: usize = 960;

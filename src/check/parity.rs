@@ -49,6 +49,10 @@ pub struct SceneParity {
     /// over the path, none of them uploaded.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texels_made: Option<u64>,
+    /// With `[gpu] update = "gpu"`: bytes of residual codes uploaded for
+    /// the pack levels among them, over the path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_bytes: Option<u64>,
 }
 
 /// Draws `session`'s frame for `camera` on the GPU (the clipmap path when the
@@ -91,6 +95,7 @@ fn draw_session(
                 meshes: &c.meshes,
                 world: &session.world,
                 update,
+                gpu_update: session.gpu_update == crate::scene::GpuUpdate::Gpu,
                 synthesis: session
                     .synthesis
                     .as_ref()
@@ -145,8 +150,9 @@ pub fn check(
     let (mut uploaded, mut full) = (0, 0);
     let mut unbuilt: Option<Vec<usize>> = None;
     let on_gpu = gpu.gpu_update == crate::scene::GpuUpdate::Gpu;
-    let (mut texels, mut made) = (
+    let (mut texels, mut made, mut residual) = (
         on_gpu.then(crate::gpu::TexelCheck::default),
+        on_gpu.then_some(0u64),
         on_gpu.then_some(0u64),
     );
     for i in 0..frames.max(1) {
@@ -157,8 +163,9 @@ pub fn check(
         if let (Some(t), Some(cm)) = (texels.as_mut(), gpu.lod.clipmap()) {
             t.merge(&r.check_toroids(cm, &gpu.world)?);
         }
-        if let Some(m) = made.as_mut() {
+        if let (Some(m), Some(b)) = (made.as_mut(), residual.as_mut()) {
             *m += r.texels_made();
+            *b += r.residual_bytes();
         }
         if let Some(l) = lazy {
             unbuilt.get_or_insert_with(Vec::new).push(l.levels_unbuilt);
@@ -221,6 +228,7 @@ pub fn check(
         levels_unbuilt: unbuilt,
         texels,
         texels_made: made,
+        residual_bytes: residual,
     })
 }
 
@@ -268,12 +276,18 @@ pub fn update_bench(
 ) -> Result<UpdateBench> {
     let mut passes = Passes::default();
     let mut session = Session::new(scene, &mut passes)?;
-    let Some(how) = session.synthesis.clone() else {
+    let how = session.synthesis.clone();
+    let residuals = session
+        .lod
+        .clipmap()
+        .is_some_and(|cm| (0..cm.levels().len()).any(|l| cm.pyramid().residual_step(l).is_some()));
+    if how.is_none() && !residuals {
         return Err(crate::Error::value(
             "bench --update",
-            "the scene synthesises no levels ([terrain] synthesis)",
+            "the scene has no level the GPU can make: it synthesises none ([terrain] synthesis) \
+             and its terrain is no pack coded with --predictor upsampled",
         ));
-    };
+    }
     r.forget_textures();
     let base = scene.camera();
     let mut times = Vec::new();
@@ -291,11 +305,11 @@ pub fn update_bench(
         if i == 0 {
             // Once untimed, so the jump pays no pipeline compilation or
             // first-use costs; then again from empty textures.
-            r.time_update(cm, &session.world, &how, None, slopes)?;
+            r.time_update(cm, &session.world, how.as_ref(), None, slopes)?;
             r.forget_textures();
         }
         let (upload_ms, gpu_pass_ms, texels) =
-            r.time_update(cm, &session.world, &how, update, slopes)?;
+            r.time_update(cm, &session.world, how.as_ref(), update, slopes)?;
         times.push(UpdateTimes {
             cpu_update_ms: crate::frame::stats::pass_ms(&p.0, &["lod"]),
             upload_ms,

@@ -53,8 +53,11 @@ pub struct ClipDraw<'a> {
     pub world: &'a WorldMap,
     /// The update since the last draw; `None` uploads every level in full.
     pub update: Option<&'a UpdateStats>,
-    /// With `[gpu] update = "gpu"` and synthesised levels: how they are
-    /// made, for the GPU's update pass to make them itself.
+    /// `[gpu] update = "gpu"`: the GPU's update pass makes the levels it
+    /// can (synthesised ones, and those of a pack coded against the
+    /// upsampled coarser level) instead of the CPU uploading them.
+    pub gpu_update: bool,
+    /// With synthesised levels: how they are made, for the update pass.
     pub synthesis: Option<&'a crate::synthesis::source::Continuation>,
 }
 
@@ -112,6 +115,8 @@ pub struct GpuRenderer {
     update: Option<update::UpdatePass>,
     /// Toroid texels the update pass made in the last clipmap draw.
     texels_made: u64,
+    /// Bytes of residuals uploaded for it.
+    residual_bytes: u64,
     /// Static footprint corners for the current n: (n, buffer, range per shape).
     footprints: Option<(i64, wgpu::Buffer, ShapeRanges)>,
 }
@@ -187,6 +192,7 @@ impl GpuRenderer {
             toroid: None,
             update: None,
             texels_made: 0,
+            residual_bytes: 0,
             footprints: None,
         }
     }
@@ -208,6 +214,12 @@ impl GpuRenderer {
         self.texels_made
     }
 
+    /// Bytes of residuals the update pass was given in the last clipmap
+    /// draw (a pack's levels made on the GPU).
+    pub fn residual_bytes(&self) -> u64 {
+        self.residual_bytes
+    }
+
     /// Times the update of `cm`'s synthesised levels both ways, after
     /// bringing the map's own levels up to date: the CPU's texels (and
     /// slopes, with `slopes`) uploaded over the update's rectangles, and
@@ -217,7 +229,7 @@ impl GpuRenderer {
         &mut self,
         cm: &Clipmap,
         world: &WorldMap,
-        how: &crate::synthesis::source::Continuation,
+        how: Option<&crate::synthesis::source::Continuation>,
         update: Option<&UpdateStats>,
         slopes: bool,
     ) -> Result<(f64, f64, u64)> {
@@ -227,7 +239,7 @@ impl GpuRenderer {
                 .map(|_| ())
                 .map_err(|e| Error::value("gpu", format!("wait failed: {e}")))
         };
-        let on_gpu = update::UpdatePass::levels(cm, slopes);
+        let on_gpu = update::UpdatePass::levels(cm, slopes, how.is_some());
         let tt = self
             .toroid
             .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
@@ -245,7 +257,7 @@ impl GpuRenderer {
             .update
             .get_or_insert_with(|| update::UpdatePass::new(&self.gpu));
         let t = std::time::Instant::now();
-        let made = pass.run(&self.gpu, tt, cm, world, how, &jobs);
+        let (made, _) = pass.run(&self.gpu, tt, cm, world, how, &jobs);
         wait(&self.gpu)?;
         Ok((upload, t.elapsed().as_secs_f64() * 1e3, made))
     }
@@ -398,13 +410,13 @@ impl GpuRenderer {
             let tt = self
                 .toroid
                 .get_or_insert_with(|| ToroidTextures::empty(&self.gpu));
-            // The synthesised levels the GPU makes itself: those whose
-            // windows read only their coarser level's (the rest uploaded).
-            let on_gpu = match c.synthesis {
-                Some(_) => update::UpdatePass::levels(cm, need_gradients),
-                None => vec![],
+            // The levels the GPU makes itself: those whose windows read
+            // only their coarser level's (the rest uploaded).
+            let on_gpu = match c.gpu_update {
+                true => update::UpdatePass::levels(cm, need_gradients, c.synthesis.is_some()),
+                false => vec![],
             };
-            if !on_gpu.is_empty() && !self.gpu.toroid_storage {
+            if on_gpu.contains(&true) && !self.gpu.toroid_storage {
                 return Err(Error::value(
                     "[gpu] update",
                     format!(
@@ -415,12 +427,13 @@ impl GpuRenderer {
                 ));
             }
             let jobs = tt.sync(&self.gpu, cm, c.world, c.update, need_gradients, &on_gpu);
-            self.texels_made = 0;
-            if let (Some(how), false) = (c.synthesis, jobs.is_empty()) {
+            (self.texels_made, self.residual_bytes) = (0, 0);
+            if !jobs.is_empty() {
                 let pass = self
                     .update
                     .get_or_insert_with(|| update::UpdatePass::new(&self.gpu));
-                self.texels_made = pass.run(&self.gpu, tt, cm, c.world, how, &jobs);
+                (self.texels_made, self.residual_bytes) =
+                    pass.run(&self.gpu, tt, cm, c.world, c.synthesis, &jobs);
             }
             self.footprint_buffer(cm);
             let n = cm.n();

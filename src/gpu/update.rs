@@ -1,16 +1,24 @@
-//! `[gpu] update = "gpu"`: the clipmap update of synthesised levels done
-//! on the GPU (GPU Gems 2 ch. 2 moved the upsampling there). Each dirty
-//! rectangle of a synthesised level's toroid is filled by a compute pass
-//! from the next coarser level's toroid, coarse to fine, with the noise
-//! table uploaded once; the CPU uploads nothing for those levels. The
-//! shader (`shaders/update.wgsl`) repeats the CPU's synthesis and slope
-//! arithmetic operation for operation, so lavapipe's toroids equal the
-//! CPU's bit for bit (`check-gpu --frames N` compares them after every
-//! update).
+//! `[gpu] update = "gpu"`: the clipmap update done on the GPU (GPU Gems 2
+//! ch. 2 moved the upsampling there). Each dirty rectangle of a level's
+//! toroid is filled by a compute pass from the next coarser level's
+//! toroid, coarse to fine:
+//!
+//! - a synthesised level adds the noise table, uploaded once; the CPU
+//!   uploads nothing for it;
+//! - a level of a pack coded with `--predictor upsampled` adds its
+//!   residuals, which the CPU uploads as 16-bit codes over the rectangle
+//!   and a texel around it (for the slopes), with the rare height that no
+//!   code reaches sent whole: LH04's and GPU Gems 2's division of labour,
+//!   2 bytes a texel instead of 4 for the height and 8 for the slope.
+//!
+//! The shader (`shaders/update.wgsl`) repeats the CPU's subdivision,
+//! synthesis, reconstruction and slope arithmetic operation for
+//! operation, so lavapipe's toroids equal the CPU's bit for bit
+//! (`check-gpu --frames N` compares them after every update).
 
 use super::textures::ToroidTextures;
 use super::Gpu;
-use crate::clipmap::toroid::TexRects;
+use crate::clipmap::toroid::{TexRect, TexRects};
 use crate::clipmap::Clipmap;
 use crate::synthesis::source::Continuation;
 use crate::synthesis::{NoiseTable, STRETCH};
@@ -31,6 +39,63 @@ struct Synth {
     origin: [i32; 4],
     rect_end: [i32; 4],
     scale: [f32; 4],
+    res_box: [i32; 4],
+    res: [i32; 4],
+}
+
+/// The residual of a code the shader reads as an escape.
+const ESCAPE: i32 = -32768;
+
+/// The words the shader reads for the residuals of level `l` over `bx`
+/// (first column, first row, columns, rows of level texels): every
+/// sample's code q, the i16 with `p + f32(q) · step` equal to the CPU's
+/// height, p the subdivision of level l + 1, two codes a word (the even
+/// sample in the low half); then, for each sample no code reaches (a
+/// height the pack stored whole, a residual past ±32767, or one not yet
+/// decoded), its index and its height's bits. A pack level's heights
+/// are its decoded ones, so the codes are the pack's residuals.
+fn residual_words(p: &crate::pyramid::Pyramid, l: usize, step: f32, bx: [usize; 4]) -> Vec<u32> {
+    let (level, coarse) = (&p.levels[l], &p.levels[l + 1]);
+    let [x0, y0, w, h] = bx;
+    let (pred, _) = crate::pyramid::subdivide::subdivide_window(coarse, bx);
+    let mut codes = Vec::with_capacity(w * h);
+    let mut escapes = Vec::new();
+    for (i, &p) in pred.iter().enumerate() {
+        let v = level.data[(y0 + i / w) * level.width + x0 + i % w];
+        let q = ((v as f64 - p as f64) / step as f64).round();
+        let fits = q.abs() < 32767.5 && (p + q as f32 * step).to_bits() == v.to_bits();
+        if fits {
+            codes.push(q as i32);
+        } else {
+            codes.push(ESCAPE);
+            escapes.extend([i as u32, v.to_bits()]);
+        }
+    }
+    let mut words: Vec<u32> = codes
+        .chunks(2)
+        .map(|c| (c[0] as u16 as u32) | (c.get(1).map_or(0, |&q| q as u16 as u32) << 16))
+        .collect();
+    words.extend(escapes);
+    words
+}
+
+/// The level texels toroid rectangle `r` of a level whose window starts at
+/// `o` holds, `margin` wider on every side, clamped to the level's `size`:
+/// first column, first row, columns, rows.
+fn level_box(r: &TexRect, o: [i64; 2], n: i64, margin: i64, size: [usize; 2]) -> [usize; 4] {
+    let span = |a: usize, b: usize, o: i64, last: usize| {
+        // A toroid interval's level texels: one run, or two across the
+        // window's seam, which the window's whole width then spans.
+        let at = |t: usize| o + (t as i64 - o).rem_euclid(n);
+        let (lo, hi) = (at(a), at(b - 1));
+        let (lo, hi) = if lo <= hi { (lo, hi) } else { (o, o + n - 1) };
+        let lo = (lo - margin).clamp(0, last as i64) as usize;
+        let hi = (hi + margin).clamp(0, last as i64) as usize;
+        (lo, hi - lo + 1)
+    };
+    let (x0, w) = span(r.x0, r.x1, o[0], size[0] - 1);
+    let (y0, h) = span(r.y0, r.y1, o[1], size[1] - 1);
+    [x0, y0, w, h]
 }
 
 /// The compute pipeline and the noise table it reads.
@@ -41,6 +106,9 @@ pub struct UpdatePass {
     table: Option<(u64, wgpu::Buffer)>,
     /// A slope target for passes that write none.
     no_slopes: wgpu::Texture,
+    /// A buffer for the binding a pass does not read (the table or the
+    /// residuals).
+    unused: wgpu::Buffer,
 }
 
 impl UpdatePass {
@@ -59,6 +127,16 @@ impl UpdatePass {
                 access: wgpu::StorageTextureAccess::WriteOnly,
                 format,
                 view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        };
+        let storage_buf = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: cs,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: false,
+                min_binding_size: None,
             },
             count: None,
         };
@@ -85,18 +163,10 @@ impl UpdatePass {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: cs,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_buf(2),
                 storage_tex(3, wgpu::TextureFormat::R32Float),
                 storage_tex(4, wgpu::TextureFormat::Rg32Float),
+                storage_buf(5),
             ],
         });
         let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -118,20 +188,35 @@ impl UpdatePass {
             wgpu::TextureFormat::Rg32Float,
             "no slopes",
         );
+        let unused = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("unused"),
+            contents: &[0; 4],
+            usage: wgpu::BufferUsages::STORAGE,
+        });
         UpdatePass {
             pipeline,
             layout,
             table: None,
             no_slopes,
+            unused,
         }
     }
 
     /// Per clipmap level, whether the GPU makes it: the synthesised levels
-    /// whose windows are [`UpdatePass::covered`] (the rest are uploaded).
-    pub fn levels(cm: &Clipmap, slopes: bool) -> Vec<bool> {
-        let k = cm.pyramid().finer_levels();
+    /// (with `synthesis`, how they are made) and the levels a pack holds
+    /// as residuals against the upsampled coarser level, whose windows are
+    /// [`UpdatePass::covered`] (the rest are uploaded).
+    pub fn levels(cm: &Clipmap, slopes: bool, synthesis: bool) -> Vec<bool> {
+        let (k, p) = (cm.pyramid().finer_levels(), cm.pyramid());
         (0..cm.levels().len())
-            .map(|l| l < k && Self::covered(cm, l, slopes))
+            .map(|l| {
+                let made = if l < k {
+                    synthesis
+                } else {
+                    p.residual_step(l).is_some()
+                };
+                made && Self::covered(cm, l, slopes)
+            })
             .collect()
     }
 
@@ -159,29 +244,32 @@ impl UpdatePass {
         })
     }
 
-    /// Fills each of `jobs` (a synthesised level and its dirty
-    /// rectangles), coarsest first, on the GPU; returns the texels made.
-    /// Every level must be [`UpdatePass::covered`].
+    /// Fills each of `jobs` (a level [`UpdatePass::levels`] names and its
+    /// dirty rectangles), coarsest first, on the GPU, synthesised levels
+    /// as `how` says; returns the texels made and the bytes of residuals
+    /// uploaded. Every level must be [`UpdatePass::covered`].
     pub fn run(
         &mut self,
         gpu: &Gpu,
         tt: &ToroidTextures,
         cm: &Clipmap,
         world: &WorldMap,
-        how: &Continuation,
+        how: Option<&Continuation>,
         jobs: &[(usize, TexRects)],
-    ) -> u64 {
+    ) -> (u64, u64) {
         let d = &gpu.device;
-        if self.table.as_ref().is_none_or(|t| t.0 != how.seed) {
-            let t = NoiseTable::new(how.seed);
-            let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("noise table"),
-                contents: bytemuck::cast_slice(t.values()),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            self.table = Some((how.seed, buf));
+        if let Some(how) = how {
+            if self.table.as_ref().is_none_or(|t| t.0 != how.seed) {
+                let t = NoiseTable::new(how.seed);
+                let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("noise table"),
+                    contents: bytemuck::cast_slice(t.values()),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+                self.table = Some((how.seed, buf));
+            }
         }
-        let table = &self.table.as_ref().expect("made above").1;
+        let table = self.table.as_ref().map_or(&self.unused, |t| &t.1);
         let finer = cm.pyramid().finer_levels();
         let n = cm.n();
         let slopes = tt.has_gradients();
@@ -199,7 +287,7 @@ impl UpdatePass {
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("update"),
         });
-        let mut made = 0;
+        let (mut made, mut sent) = (0, 0);
         for &(l, ref rects) in order {
             let (fine, coarse) = (&cm.pyramid().levels[l], &cm.pyramid().levels[l + 1]);
             let o = cm.levels()[l].heights.origin().expect("covered");
@@ -218,7 +306,31 @@ impl UpdatePass {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&self.pipeline);
+            // A synthesised level's amplitude, or a pack level's step.
+            let (amp, step) = match (l < finer, how) {
+                (true, Some(how)) => (how.amplitudes[k - 1] as f32, None),
+                _ => {
+                    let s = cm.pyramid().residual_step(l).expect("a residual level");
+                    (s, Some(s))
+                }
+            };
             for r in rects {
+                let (res_box, res, residuals) = match step {
+                    None => ([0; 4], [0; 4], None),
+                    Some(s) => {
+                        let bx = level_box(r, o, n, slopes as i64, [fine.width, fine.height]);
+                        let words = residual_words(cm.pyramid(), l, s, bx);
+                        let escapes = words.len() - (bx[2] * bx[3]).div_ceil(2);
+                        sent += 4 * words.len() as u64;
+                        let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                            label: Some("residuals"),
+                            contents: bytemuck::cast_slice(&words),
+                            usage: wgpu::BufferUsages::STORAGE,
+                        });
+                        let b = bx.map(|v| v as i32);
+                        (b, [1, (escapes / 2) as i32, 0, 0], Some(buf))
+                    }
+                };
                 let u = Synth {
                     dims: [
                         fine.width as i32,
@@ -229,7 +341,9 @@ impl UpdatePass {
                     grid: [n as i32, k as i32, STRETCH[0] as i32, STRETCH[1] as i32],
                     origin: [o[0] as i32, o[1] as i32, r.x0 as i32, r.y0 as i32],
                     rect_end: [r.x1 as i32, r.y1 as i32, slopes as i32, 0],
-                    scale: [how.amplitudes[k - 1] as f32, sx, sy, 0.0],
+                    scale: [amp, sx, sy, 0.0],
+                    res_box,
+                    res,
                 };
                 let ub = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("update uniforms"),
@@ -260,6 +374,13 @@ impl UpdatePass {
                             binding: 4,
                             resource: wgpu::BindingResource::TextureView(gv),
                         },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: residuals
+                                .as_ref()
+                                .unwrap_or(&self.unused)
+                                .as_entire_binding(),
+                        },
                     ],
                 });
                 pass.set_bind_group(0, &bg, &[]);
@@ -269,6 +390,6 @@ impl UpdatePass {
             }
         }
         gpu.queue.submit([enc.finish()]);
-        made
+        (made, sent)
     }
 }

@@ -81,6 +81,15 @@ impl TileSource for PackReader {
     fn tile(&self) -> usize {
         self.header.tile
     }
+    fn residual_step(&self, l: usize) -> Option<f32> {
+        match self.quant[l] {
+            // The coarsest level is predicted from its own samples.
+            Quant::Upsampled { max_error } if l + 1 < self.quant.len() => {
+                Some((2.0 * max_error) as f32)
+            }
+            _ => None,
+        }
+    }
     fn reads(&self, l: usize, [tx, ty]: [usize; 2]) -> Option<[i64; 4]> {
         if l + 1 >= self.header.levels() {
             return None;

@@ -54,6 +54,13 @@ pub trait TileSource: Send + Sync + std::fmt::Debug {
         t: [usize; 2],
         coarse: &PyramidLevel,
     ) -> Result<(Vec<f32>, Vec<bool>), String>;
+    /// Where every sample of level `l` is the four-point upsampling of
+    /// level l + 1 plus a whole number of this f32 step (a pack coded with
+    /// [`crate::pack::Predictor::Upsampled`]): the step, so that a GPU
+    /// pass can rebuild the level from its residuals. `None` otherwise.
+    fn residual_step(&self, _l: usize) -> Option<f32> {
+        None
+    }
 }
 
 /// The decoding part of a [`Pyramid`].
@@ -176,6 +183,13 @@ impl TileSource for Stacked {
             None => Err(format!("level {l} is whole and has no tiles to decode")),
         }
     }
+    fn residual_step(&self, l: usize) -> Option<f32> {
+        match &self.coarser {
+            _ if l < self.k => self.finer.residual_step(l),
+            Some(c) => c.residual_step(l - self.k),
+            None => None,
+        }
+    }
 }
 
 impl Pyramid {
@@ -223,6 +237,12 @@ impl Pyramid {
             }),
             finer: 0,
         })
+    }
+
+    /// [`TileSource::residual_step`] of level `l`, for a pyramid decoded
+    /// from tiles.
+    pub fn residual_step(&self, l: usize) -> Option<f32> {
+        self.decoded.as_ref()?.src.residual_step(l)
     }
 
     /// The first tile a decoded pyramid failed to decode, as an error that

@@ -1,10 +1,12 @@
-// The clipmap update on the GPU for a synthesised level (GPU Gems 2 ch. 2;
-// LH04's synthesis): each texel of a dirty rectangle of level l's toroid
-// is the four-point subdivision of level l + 1's toroid plus the noise
-// table's value times the level's amplitude, and its slope is the central
-// difference of two such samples. Every operation is the CPU's
-// (src/synthesis/mod.rs, src/shade/normals.rs) in the same order and the
-// same shapes, so lavapipe gives the same bits (docs/raster-rules.md).
+// The clipmap update on the GPU (GPU Gems 2 ch. 2; LH04): each texel of a
+// dirty rectangle of level l's toroid is the four-point subdivision of
+// level l + 1's toroid plus, for a synthesised level, the noise table's
+// value times the level's amplitude, or, for a level of a pack coded
+// against that subdivision, its uploaded residual times the pack's step;
+// its slope is the central difference of two such samples. Every
+// operation is the CPU's (src/pyramid/subdivide.rs, src/synthesis/mod.rs,
+// src/pack/codec.rs, src/shade/normals.rs) in the same order and the same
+// shapes, so lavapipe gives the same bits (docs/raster-rules.md).
 
 struct Synth {
     // Fine level: width, height; coarse level: width, height.
@@ -17,8 +19,13 @@ struct Synth {
     // The rectangle's toroid texels past the last, and whether slopes are
     // written.
     rect_end: vec4<i32>,
-    // Amplitude, slope scale x, slope scale y.
+    // Amplitude (or the pack's step), slope scale x, slope scale y.
     scale: vec4<f32>,
+    // The residuals' box of level texels: first column, first row,
+    // columns, rows.
+    res_box: vec4<i32>,
+    // 0 synthesises, 1 adds residuals; escapes after the codes.
+    res: vec4<i32>,
 }
 
 @group(0) @binding(0) var<uniform> s: Synth;
@@ -26,6 +33,10 @@ struct Synth {
 @group(0) @binding(2) var<storage, read> table: array<f32>;
 @group(0) @binding(3) var fine: texture_storage_2d<r32float, write>;
 @group(0) @binding(4) var slopes: texture_storage_2d<rg32float, write>;
+// The residuals of the box, row-major, two i16 codes a word (the even
+// sample in the low half); a code of -32768 is an escape, whose height's
+// bits follow the codes as (sample index, bits) pairs sorted by index.
+@group(0) @binding(5) var<storage, read> residuals: array<u32>;
 
 // Coarse sample (i, j), clamped to the coarse level, from its toroid.
 fn c(i: i32, j: i32) -> f32 {
@@ -61,10 +72,41 @@ fn synth(x: i32, y: i32) -> f32 {
         let b = four(line(i, j - 1, 1, 0), line(i, j, 1, 0), line(i, j + 1, 1, 0), line(i, j + 2, 1, 0));
         v = (a + b) * 0.5;
     }
+    if (s.res.x == 1) {
+        return with_residual(x, y, v);
+    }
     let off = 17 * s.grid.y;
     let u = wrap((s.grid.z * x) / s.grid.w + off, 64);
     let t = wrap((s.grid.z * y) / s.grid.w + 3 * off, 64);
     return v + s.scale.x * table[t * 64 + u];
+}
+
+// Level sample (x, y), predicted as p, from its residual.
+fn with_residual(x: i32, y: i32, p: f32) -> f32 {
+    let i = (y - s.res_box.y) * s.res_box.z + (x - s.res_box.x);
+    let w = bitcast<i32>(residuals[i / 2]);
+    var q: i32;
+    if (i % 2 == 0) {
+        q = (w << 16u) >> 16u;
+    } else {
+        q = w >> 16u;
+    }
+    if (q != -32768) {
+        return p + f32(q) * s.scale.x;
+    }
+    // The escape's pair: a binary search over the sorted indices.
+    let base = (s.res_box.z * s.res_box.w + 1) / 2;
+    var lo = 0;
+    var hi = s.res.y;
+    while (hi - lo > 1) {
+        let mid = (lo + hi) / 2;
+        if (i32(residuals[base + 2 * mid]) <= i) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return bitcast<f32>(residuals[base + 2 * lo + 1]);
 }
 
 fn clamped(x: i32, y: i32) -> f32 {
