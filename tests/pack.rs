@@ -296,6 +296,15 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     fails(&b, "header checksum mismatch");
     b[16..20].copy_from_slice(&crc32fast::hash(wrong.as_bytes()).to_le_bytes());
     fails(&b, "not the half of level 0");
+    // A level's quantisation that cannot decode (the same length, so the
+    // index still fits), its checksum redone.
+    let step = "\"kind\":\"step\",\"max_error\":1.0";
+    assert!(text.contains(step), "{text}");
+    let wrong = text.replacen(step, "\"kind\":\"step\",\"max_error\":0.0", 1);
+    let mut b = good.clone();
+    b[20..index].copy_from_slice(wrong.as_bytes());
+    b[16..20].copy_from_slice(&crc32fast::hash(wrong.as_bytes()).to_le_bytes());
+    fails(&b, "quantisation Step { max_error: 0.0 } is not usable");
 }
 
 /// The jacksboro golden scene with its terrain replaced by a pack of the

@@ -449,6 +449,23 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
             h.cell_size
         ));
     }
+    for (l, spec) in h.levels.iter().enumerate() {
+        let fine = match spec.quant {
+            Quant::Step { max_error } | Quant::Upsampled { max_error } => {
+                max_error.is_finite() && max_error > 0.0
+            }
+            Quant::Lattice { offset, scale } => {
+                offset.is_finite() && scale.is_finite() && scale > 0.0
+            }
+            Quant::Bits => true,
+        };
+        if !fine {
+            return Err(format!(
+                "level {l}'s quantisation {:?} is not usable",
+                spec.quant
+            ));
+        }
+    }
     let [w, hh] = [h.levels[0].width, h.levels[0].height];
     crate::terrain::check_side(w as u64, hh as u64)?;
     for (l, pair) in h.levels.windows(2).enumerate() {
