@@ -253,7 +253,8 @@ pub struct UpdateTimes {
 pub struct UpdateBench {
     /// The adapter's name, driver and API.
     pub adapter: String,
-    /// Synthesised levels.
+    /// Levels the GPU's update pass makes: synthesised ones, and those of
+    /// a pack coded with `--predictor upsampled`.
     pub levels: usize,
     /// Toroid side.
     pub n: i64,
@@ -291,6 +292,7 @@ pub fn update_bench(
     r.forget_textures();
     let base = scene.camera();
     let mut times = Vec::new();
+    let mut levels = 0;
     for i in 0..=frames {
         let mut p = Passes::default();
         let (frame, clip) = session.frame(&path_camera(&base, i, step), &mut p)?;
@@ -301,6 +303,7 @@ pub fn update_bench(
             ));
         };
         let slopes = frame.effects.lit() && !frame.effects.normal_map;
+        levels = GpuRenderer::update_levels(cm, slopes, how.is_some());
         let update = (i > 0).then_some(&c.update);
         if i == 0 {
             // Once untimed, so the jump pays no pipeline compilation or
@@ -322,7 +325,7 @@ pub fn update_bench(
     let cm = session.lod.clipmap().expect("a clipmap");
     Ok(UpdateBench {
         adapter: r.gpu.adapter(),
-        levels: cm.pyramid().finer_levels(),
+        levels,
         n: cm.n(),
         jump: times[0].clone(),
         walk: UpdateTimes {

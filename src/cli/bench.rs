@@ -17,9 +17,10 @@ pub struct Args {
     /// Image size WIDTHxHEIGHT.
     #[arg(long, default_value = "1920x1080", value_parser = Overrides::parse_size)]
     pub size: [u32; 2],
-    /// Time the synthesised levels' update instead: the CPU's update and
-    /// upload against the GPU's update pass, for a jump (the first frame)
-    /// and a walk of --frames frames of --step metres.
+    /// Time the update of the levels the GPU can make instead (synthesised
+    /// ones, and an upsampled pack's): the CPU's update and upload against
+    /// the GPU's update pass, for a jump (the first frame) and a walk of
+    /// --frames frames of --step metres.
     #[arg(long)]
     pub update: bool,
     /// Metres a frame, with --update.
@@ -48,7 +49,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         } else {
             for (what, t) in [("jump", &b.jump), ("walk", &b.walk)] {
                 println!(
-                    "{what}: {} texels of {} synthesised levels (n = {}): CPU update {:.3} ms + upload {:.3} ms, GPU pass {:.3} ms ({})",
+                    "{what}: {} texels of {} levels made on the GPU (n = {}): CPU update {:.3} ms + upload {:.3} ms, GPU pass {:.3} ms ({})",
                     t.texels, b.levels, b.n, t.cpu_update_ms, t.upload_ms, t.gpu_pass_ms, b.adapter
                 );
             }

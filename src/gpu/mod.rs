@@ -214,6 +214,16 @@ impl GpuRenderer {
         self.texels_made
     }
 
+    /// How many of `cm`'s levels the GPU's update pass makes with
+    /// `[gpu] update = "gpu"` (slopes too with `slopes`; synthesised
+    /// levels with `synthesis`).
+    pub fn update_levels(cm: &Clipmap, slopes: bool, synthesis: bool) -> usize {
+        update::UpdatePass::levels(cm, slopes, synthesis)
+            .iter()
+            .filter(|&&m| m)
+            .count()
+    }
+
     /// Bytes of residuals the update pass was given in the last clipmap
     /// draw (a pack's levels made on the GPU).
     pub fn residual_bytes(&self) -> u64 {

@@ -100,6 +100,8 @@ fn level_box(r: &TexRect, o: [i64; 2], n: i64, margin: i64, size: [usize; 2]) ->
 
 /// The compute pipeline and the noise table it reads.
 pub struct UpdatePass {
+    /// The first pass (the box's samples) and the second (the toroid's).
+    fill: wgpu::ComputePipeline,
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     /// The seed the table was made from, and the table.
@@ -167,6 +169,16 @@ impl UpdatePass {
                 storage_tex(3, wgpu::TextureFormat::R32Float),
                 storage_tex(4, wgpu::TextureFormat::Rg32Float),
                 storage_buf(5),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 6,
+                    visibility: cs,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
             ],
         });
         let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -174,14 +186,17 @@ impl UpdatePass {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("update"),
-            layout: Some(&pl),
-            module: &module,
-            entry_point: Some("update"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let entry = |name| {
+            d.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let (fill, pipeline) = (entry("fill"), entry("update"));
         let no_slopes = super::textures::toroid_texture(
             gpu,
             [1, 1, 1],
@@ -194,6 +209,7 @@ impl UpdatePass {
             usage: wgpu::BufferUsages::STORAGE,
         });
         UpdatePass {
+            fill,
             pipeline,
             layout,
             table: None,
@@ -305,7 +321,6 @@ impl UpdatePass {
                 label: Some("update level"),
                 timestamp_writes: None,
             });
-            pass.set_pipeline(&self.pipeline);
             // A synthesised level's amplitude, or a pack level's step.
             let (amp, step) = match (l < finer, how) {
                 (true, Some(how)) => (how.amplitudes[k - 1] as f32, None),
@@ -315,10 +330,11 @@ impl UpdatePass {
                 }
             };
             for r in rects {
-                let (res_box, res, residuals) = match step {
-                    None => ([0; 4], [0; 4], None),
+                let bx = level_box(r, o, n, slopes as i64, [fine.width, fine.height]);
+                let res_box = bx.map(|v| v as i32);
+                let (res, residuals) = match step {
+                    None => ([0; 4], None),
                     Some(s) => {
-                        let bx = level_box(r, o, n, slopes as i64, [fine.width, fine.height]);
                         let words = residual_words(cm.pyramid(), l, s, bx);
                         let escapes = words.len() - (bx[2] * bx[3]).div_ceil(2);
                         sent += 4 * words.len() as u64;
@@ -327,10 +343,15 @@ impl UpdatePass {
                             contents: bytemuck::cast_slice(&words),
                             usage: wgpu::BufferUsages::STORAGE,
                         });
-                        let b = bx.map(|v| v as i32);
-                        (b, [1, (escapes / 2) as i32, 0, 0], Some(buf))
+                        ([1, (escapes / 2) as i32, 0, 0], Some(buf))
                     }
                 };
+                let scratch = d.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("update box"),
+                    size: 4 * (bx[2] * bx[3]) as u64,
+                    usage: wgpu::BufferUsages::STORAGE,
+                    mapped_at_creation: false,
+                });
                 let u = Synth {
                     dims: [
                         fine.width as i32,
@@ -381,9 +402,18 @@ impl UpdatePass {
                                 .unwrap_or(&self.unused)
                                 .as_entire_binding(),
                         },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: scratch.as_entire_binding(),
+                        },
                     ],
                 });
                 pass.set_bind_group(0, &bg, &[]);
+                // The box's samples, then (a dispatch later, so after
+                // they are all written) the toroid's texels from them.
+                pass.set_pipeline(&self.fill);
+                pass.dispatch_workgroups((bx[2] as u32).div_ceil(8), (bx[3] as u32).div_ceil(8), 1);
+                pass.set_pipeline(&self.pipeline);
                 let (w, h) = ((r.x1 - r.x0) as u32, (r.y1 - r.y0) as u32);
                 pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
                 made += r.area() as u64;

@@ -21,8 +21,9 @@ struct Synth {
     rect_end: vec4<i32>,
     // Amplitude (or the pack's step), slope scale x, slope scale y.
     scale: vec4<f32>,
-    // The residuals' box of level texels: first column, first row,
-    // columns, rows.
+    // The box of level texels the rectangle reads (its own and, with
+    // slopes, one around), which the residuals and the first pass cover:
+    // first column, first row, columns, rows.
     res_box: vec4<i32>,
     // 0 synthesises, 1 adds residuals; escapes after the codes.
     res: vec4<i32>,
@@ -109,10 +110,30 @@ fn with_residual(x: i32, y: i32, p: f32) -> f32 {
     return bitcast<f32>(residuals[base + 2 * lo + 1]);
 }
 
-fn clamped(x: i32, y: i32) -> f32 {
-    return synth(clamp(x, 0, s.dims.x - 1), clamp(y, 0, s.dims.y - 1));
+// The box's samples as the first pass made them, row-major.
+@group(0) @binding(6) var<storage, read_write> scratch: array<f32>;
+
+// First pass: each sample of the box (the rectangle's level texels and
+// one around them, clamped to the level) made once, where the slopes
+// would otherwise make each five times.
+@compute @workgroup_size(8, 8)
+fn fill(@builtin(global_invocation_id) id: vec3<u32>) {
+    let bx = i32(id.x);
+    let by = i32(id.y);
+    if (bx >= s.res_box.z || by >= s.res_box.w) {
+        return;
+    }
+    scratch[by * s.res_box.z + bx] = synth(s.res_box.x + bx, s.res_box.y + by);
 }
 
+// Level sample (x, y), clamped to the level, as the first pass made it.
+fn clamped(x: i32, y: i32) -> f32 {
+    let cx = clamp(x, 0, s.dims.x - 1) - s.res_box.x;
+    let cy = clamp(y, 0, s.dims.y - 1) - s.res_box.y;
+    return scratch[cy * s.res_box.z + cx];
+}
+
+// Second pass: the rectangle's toroid texels and slopes from the box.
 @compute @workgroup_size(8, 8)
 fn update(@builtin(global_invocation_id) id: vec3<u32>) {
     let tx = s.origin.z + i32(id.x);
