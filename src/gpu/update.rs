@@ -132,11 +132,11 @@ impl UpdatePass {
             },
             count: None,
         };
-        let storage_buf = |binding| wgpu::BindGroupLayoutEntry {
+        let storage_buf = |binding, read_only| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: cs,
             ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only: true },
+                ty: wgpu::BufferBindingType::Storage { read_only },
                 has_dynamic_offset: false,
                 min_binding_size: None,
             },
@@ -165,20 +165,11 @@ impl UpdatePass {
                     },
                     count: None,
                 },
-                storage_buf(2),
+                storage_buf(2, true),
                 storage_tex(3, wgpu::TextureFormat::R32Float),
                 storage_tex(4, wgpu::TextureFormat::Rg32Float),
-                storage_buf(5),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 6,
-                    visibility: cs,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_buf(5, true),
+                storage_buf(6, false),
             ],
         });
         let pl = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
