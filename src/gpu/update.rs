@@ -20,6 +20,7 @@ use super::textures::ToroidTextures;
 use super::Gpu;
 use crate::clipmap::toroid::{TexRect, TexRects};
 use crate::clipmap::Clipmap;
+use crate::pyramid::PyramidLevel;
 use crate::synthesis::source::Continuation;
 use crate::synthesis::{NoiseTable, STRETCH};
 use crate::terrain::world::WorldMap;
@@ -46,16 +47,20 @@ struct Synth {
 /// The residual of a code the shader reads as an escape.
 const ESCAPE: i32 = -32768;
 
-/// The words the shader reads for the residuals of level `l` over `bx`
+/// The words the shader reads for the residuals of `level` over `bx`
 /// (first column, first row, columns, rows of level texels): every
 /// sample's code q, the i16 with `p + f32(q) · step` equal to the CPU's
-/// height, p the subdivision of level l + 1, two codes a word (the even
+/// height, p the subdivision of `coarse` (the next coarser level), two codes a word (the even
 /// sample in the low half); then, for each sample no code reaches (a
 /// height the pack stored whole, a residual past ±32767, or one not yet
 /// decoded), its index and its height's bits. A pack level's heights
 /// are its decoded ones, so the codes are the pack's residuals.
-fn residual_words(p: &crate::pyramid::Pyramid, l: usize, step: f32, bx: [usize; 4]) -> Vec<u32> {
-    let (level, coarse) = (&p.levels[l], &p.levels[l + 1]);
+fn residual_words(
+    level: &PyramidLevel,
+    coarse: &PyramidLevel,
+    step: f32,
+    bx: [usize; 4],
+) -> Vec<u32> {
     let [x0, y0, w, h] = bx;
     let (pred, _) = crate::pyramid::subdivide::subdivide_window(coarse, bx);
     let mut codes = Vec::with_capacity(w * h);
@@ -326,7 +331,7 @@ impl UpdatePass {
                 let (res, residuals) = match step {
                     None => ([0; 4], None),
                     Some(s) => {
-                        let words = residual_words(cm.pyramid(), l, s, bx);
+                        let words = residual_words(fine, coarse, s, bx);
                         let escapes = words.len() - (bx[2] * bx[3]).div_ceil(2);
                         sent += 4 * words.len() as u64;
                         let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -412,5 +417,78 @@ impl UpdatePass {
         }
         gpu.queue.submit([enc.finish()]);
         (made, sent)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// What the shader reads at box sample `i`: its code's sum, or its
+    /// escape's bits found by a binary search.
+    fn read(words: &[u32], count: usize, i: usize, p: f32, step: f32) -> f32 {
+        let q = (words[i / 2] >> (16 * (i % 2))) as u16 as i16;
+        if q != ESCAPE as i16 {
+            return p + q as f32 * step;
+        }
+        let esc: Vec<[u32; 2]> = words[count.div_ceil(2)..]
+            .chunks(2)
+            .map(|c| [c[0], c[1]])
+            .collect();
+        assert!(esc.windows(2).all(|w| w[0][0] < w[1][0]), "sorted");
+        let k = esc.partition_point(|e| e[0] as usize <= i) - 1;
+        assert_eq!(esc[k][0] as usize, i);
+        f32::from_bits(esc[k][1])
+    }
+
+    #[test]
+    fn residual_words_give_back_every_height_of_the_box() {
+        let coarse = PyramidLevel::from_parts(
+            5,
+            5,
+            (0..25)
+                .map(|i| ((i * 37) % 11) as f32 * 3.25 - 9.0)
+                .collect(),
+            vec![false; 25],
+        );
+        let step = 0.6f32;
+        let (p, _) = crate::pyramid::subdivide::subdivide(&coarse);
+        let mut data: Vec<f32> = p
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| p + ((i % 7) as f32 - 3.0) * step)
+            .collect();
+        // One height off the grid, one residual past an i16, one below.
+        data[9 * 2 + 3] = 1.234_567;
+        data[9 * 3 + 4] = p[9 * 3 + 4] + 40_000.0 * step;
+        data[9 * 4 + 6] = p[9 * 4 + 6] - 32_767.0 * step;
+        let level = PyramidLevel::from_parts(9, 9, data.clone(), vec![false; 81]);
+        let bx = [2, 1, 5, 4];
+        let words = residual_words(&level, &coarse, step, bx);
+        let count = bx[2] * bx[3];
+        assert_eq!(words.len(), count.div_ceil(2) + 2 * 2, "two escapes");
+        for i in 0..count {
+            let (x, y) = (bx[0] + i % bx[2], bx[1] + i / bx[2]);
+            let got = read(&words, count, i, p[y * 9 + x], step);
+            assert_eq!(got.to_bits(), data[y * 9 + x].to_bits(), "({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn a_level_box_covers_the_rectangles_texels_and_their_margin() {
+        let rect = |x0, x1, y0, y1| TexRect { x0, y0, x1, y1 };
+        // Window at level (10, 3), n = 8: toroid column t holds level
+        // 10 + (t − 10) mod 8.
+        let (o, size) = ([10, 3], [40, 40]);
+        // Columns 4..6 hold 12..=13; rows 0..8 the whole window, 3..=10.
+        assert_eq!(level_box(&rect(4, 6, 0, 8), o, 8, 0, size), [12, 3, 2, 8]);
+        assert_eq!(level_box(&rect(4, 6, 0, 8), o, 8, 1, size), [11, 2, 4, 10]);
+        // Columns 1..4 hold 17, 10 and 11: across the seam, the whole window.
+        assert_eq!(level_box(&rect(1, 4, 3, 4), o, 8, 0, size), [10, 3, 8, 1]);
+        // Clamped to the level.
+        assert_eq!(
+            level_box(&rect(0, 8, 0, 8), [0, 4], 8, 1, [8, 12]),
+            [0, 3, 8, 9]
+        );
     }
 }
