@@ -333,17 +333,19 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("scene", 97),
     ("geographic tif", 617),
     ("pack", 2),
+    ("upsampled pack", 0),
     ("export", 189),
     ("compare", 30),
 ];
 
-/// A lossy pack of a small procedural map.
-fn pack_seed(d: &Path) -> Vec<u8> {
+/// A lossy pack of a small procedural map, its finer levels predicted by
+/// `predictor`.
+fn pack_seed(d: &Path, predictor: terraclip::pack::Predictor) -> Vec<u8> {
     let map = terraclip::terrain::procedural::Procedural::new(9, 40, 30)
         .generate()
         .unwrap();
     let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
-    let (packed, _) = terraclip::pack::Packed::encode(&levels, 1.0, 16, None);
+    let (packed, _) = terraclip::pack::Packed::encode_with(&levels, 1.0, 16, None, predictor);
     let p = d.join("seed.tcz");
     terraclip::pack::file::write(&p, &packed, [10.0; 2], "sinc-blackman:11", "seed").unwrap();
     std::fs::read(&p).unwrap()
@@ -613,11 +615,12 @@ fn ten_thousand_malformed_inputs_never_panic() {
     // Kinds on generators of their own, so the kinds above keep their
     // draws: GeoTIFFs with a GeoKey directory and a tie point (1,600:
     // mutated keys, model types, units, scales and latitudes), and packs
-    // (1,000: cut, flipped and header-edited copies of a small lossy one).
+    // (1,000: cut, flipped and header-edited copies of a small lossy one;
+    // 500 more of one coded with the upsampled predictor).
     type Loader = fn(&Path) -> Result<bool, String>;
     /// Kind, generator seed, seed file, case file name, cases, loader.
     type Own<'a> = (&'a str, u64, Vec<u8>, &'a str, usize, Loader);
-    let own: [Own; 2] = [
+    let own: [Own; 3] = [
         (
             "geographic tif",
             0x6E0_7EFF_5EED_0001,
@@ -629,9 +632,17 @@ fn ten_thousand_malformed_inputs_never_panic() {
         (
             "pack",
             0x7C2_5EED_0000_0001,
-            pack_seed(&d),
+            pack_seed(&d, terraclip::pack::Predictor::Lifting),
             "case.tcz",
             1000,
+            pack_once,
+        ),
+        (
+            "upsampled pack",
+            0x7C2_5EED_0000_0002,
+            pack_seed(&d, terraclip::pack::Predictor::Upsampled),
+            "case.tcz",
+            500,
             pack_once,
         ),
     ];
