@@ -1,9 +1,9 @@
 //! Pack encode and decode on jacksboro (the repository's copy) at E = 1 m
 //! and losslessly, and one 128² tile of its level 0 decoded alone, the unit
-//! a clipmap update will decode. `benches/pack_anchors.rs` sets these
-//! against LERC and zstd.
+//! a clipmap update will decode, with both predictors at E = 1 m.
+//! `benches/pack_anchors.rs` sets these against LERC and zstd.
 use criterion::{criterion_group, criterion_main, Criterion};
-use terraclip::pack::Packed;
+use terraclip::pack::{Packed, Predictor};
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::terrain::Heightmap;
 
@@ -22,6 +22,10 @@ fn bench(c: &mut Criterion) {
             b.iter(|| packed.decode_tile(0, [1, 1], &recon[1]).unwrap())
         });
     }
+    let (packed, recon) = Packed::encode_with(&levels, 1.0, 128, None, Predictor::Upsampled);
+    c.bench_function("pack_decode_tile_jacksboro_e1_upsampled", |b| {
+        b.iter(|| packed.decode_tile(0, [1, 1], &recon[1]).unwrap())
+    });
 }
 
 criterion_group!(benches, bench);

@@ -834,8 +834,20 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                     .map(|(&a, &ph)| best[context(ph as usize, a, &t)]),
             );
             decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
-            for (i, (&s, &p)) in sym.iter().zip(&*pred).enumerate() {
-                data[place(i)] = value(s as usize, p)?;
+            // Row by row in straight loops ([`Quant::rec`]'s sum, with its
+            // step, 2E rounded to f32, made once); an escape's value is
+            // filled in after.
+            let step = quant.unit(0.0) as f32;
+            for (r, (sym, pred)) in sym.chunks_exact(w).zip(pred.chunks_exact(w)).enumerate() {
+                let row = &mut data[r * stride + ox..][..w];
+                for ((d, &s), &p) in row.iter_mut().zip(sym).zip(pred) {
+                    *d = p as f32 + (s as i64 - K) as f32 * step;
+                }
+            }
+            for (i, &s) in sym.iter().enumerate() {
+                if s as usize == ESCAPE {
+                    data[place(i)] = value(ESCAPE, pred[i])?;
+                }
             }
         }
         Some(coarse) => {

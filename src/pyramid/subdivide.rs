@@ -11,6 +11,9 @@
 use super::PyramidLevel;
 use rayon::prelude::*;
 
+/// Samples from which a window's rows are made in parallel.
+const PARALLEL_SAMPLES: usize = 1 << 16;
+
 /// The four-point interpolation (−1/16, 9/16, 9/16, −1/16) at the midpoint
 /// of `v1` and `v2`: LH04's subdivision, the pack's predictor.
 #[inline]
@@ -74,34 +77,46 @@ pub fn subdivide_window(
     let cm = |i: i64, j: i64| col_mid[(j - j0) as usize * (ni + 3) + (i - i0 + 1) as usize];
     let mut data = vec![0f32; w * h];
     let mut nodata = vec![false; w * h];
-    data.par_chunks_mut(w.max(1))
-        .zip(nodata.par_chunks_mut(w.max(1)))
-        .enumerate()
-        .for_each(|(r, (row, nd))| {
-            let y = y0 + r;
-            let j = (y / 2) as i64;
-            for (o, (out, out_nd)) in row.iter_mut().zip(nd.iter_mut()).enumerate() {
-                let x = x0 + o;
-                let i = (x / 2) as i64;
-                let (v, n) = match (x % 2, y % 2) {
-                    (0, 0) => c(i, j),
-                    (1, 0) => rm(i, j),
-                    (0, _) => cm(i, j),
-                    _ => {
-                        // The row interpolation through the four column
-                        // midpoints beside the centre, and the column one
-                        // through the four row midpoints above and below.
-                        let r = [-1, 0, 1, 2].map(|t| cm(i + t, j));
-                        let q = [-1, 0, 1, 2].map(|t| rm(i, j + t));
-                        let a = four_point(r[0].0, r[1].0, r[2].0, r[3].0);
-                        let b = four_point(q[0].0, q[1].0, q[2].0, q[3].0);
-                        let n = r.iter().chain(&q).any(|v| v.1);
-                        ((a + b) * 0.5, n)
-                    }
-                };
-                *out = v;
-                *out_nd = n;
-            }
-        });
+    let fill = |(r, (row, nd)): (usize, (&mut [f32], &mut [bool]))| {
+        let y = y0 + r;
+        let j = (y / 2) as i64;
+        for (o, (out, out_nd)) in row.iter_mut().zip(nd.iter_mut()).enumerate() {
+            let x = x0 + o;
+            let i = (x / 2) as i64;
+            let (v, n) = match (x % 2, y % 2) {
+                (0, 0) => c(i, j),
+                (1, 0) => rm(i, j),
+                (0, _) => cm(i, j),
+                _ => {
+                    // The row interpolation through the four column
+                    // midpoints beside the centre, and the column one
+                    // through the four row midpoints above and below.
+                    let r = [-1, 0, 1, 2].map(|t| cm(i + t, j));
+                    let q = [-1, 0, 1, 2].map(|t| rm(i, j + t));
+                    let a = four_point(r[0].0, r[1].0, r[2].0, r[3].0);
+                    let b = four_point(q[0].0, q[1].0, q[2].0, q[3].0);
+                    let n = r.iter().chain(&q).any(|v| v.1);
+                    ((a + b) * 0.5, n)
+                }
+            };
+            *out = v;
+            *out_nd = n;
+        }
+    };
+    // Rows in parallel only where there are enough of them to pay for it
+    // (a pack tile's prediction is one small window among many decoded
+    // at once); the bits are the same either way.
+    let side = w.max(1);
+    if w * h >= PARALLEL_SAMPLES {
+        data.par_chunks_mut(side)
+            .zip(nodata.par_chunks_mut(side))
+            .enumerate()
+            .for_each(fill);
+    } else {
+        data.chunks_mut(side)
+            .zip(nodata.chunks_mut(side))
+            .enumerate()
+            .for_each(fill);
+    }
     (data, nodata)
 }
