@@ -53,11 +53,11 @@ pub fn subdivide_window(
     // The four-point stencil along a row (dx = 1) or a column through
     // coarse (i, j) and the next one.
     let line = |i: i64, j: i64, dx: i64, dy: i64| {
-        let s = [-1, 0, 1, 2].map(|t| c(i + t * dx, j + t * dy));
-        (
-            four_point(s[0].0, s[1].0, s[2].0, s[3].0),
-            s.iter().any(|v| v.1),
-        )
+        let (a, na) = c(i - dx, j - dy);
+        let (b, nb) = c(i, j);
+        let (e, ne) = c(i + dx, j + dy);
+        let (f, nf) = c(i + 2 * dx, j + 2 * dy);
+        (four_point(a, b, e, f), na || nb || ne || nf)
     };
     // The coarse cells the window lies in, and the midpoints each centre
     // reads, computed once: row midpoints (between (i, j) and (i + 1, j))
