@@ -50,11 +50,12 @@ const ESCAPE: i32 = -32768;
 /// The words the shader reads for the residuals of `level` over `bx`
 /// (first column, first row, columns, rows of level texels): every
 /// sample's code q, the i16 with `p + f32(q) · step` equal to the CPU's
-/// height, p the subdivision of `coarse` (the next coarser level), two codes a word (the even
-/// sample in the low half); then, for each sample no code reaches (a
-/// height the pack stored whole, a residual past ±32767, or one not yet
-/// decoded), its index and its height's bits. A pack level's heights
-/// are its decoded ones, so the codes are the pack's residuals.
+/// height, p the subdivision of `coarse` (the next coarser level), two
+/// codes a word (the even sample in the low half); then, for each sample
+/// no code reaches (a height the pack stored whole, a residual past
+/// ±32767, or one not yet decoded), its index and its height's bits. A
+/// pack level's heights are its decoded ones, so the codes are the pack's
+/// residuals.
 fn residual_words(
     level: &PyramidLevel,
     coarse: &PyramidLevel,
