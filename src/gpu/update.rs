@@ -304,7 +304,8 @@ impl UpdatePass {
         for &(l, ref rects) in order {
             let (fine, coarse) = (&cm.pyramid().levels[l], &cm.pyramid().levels[l + 1]);
             let o = cm.levels()[l].heights.origin().expect("covered");
-            let k = finer - l;
+            // The synthesised level's depth below the map (0 for a pack's).
+            let k = finer.saturating_sub(l);
             let [sx, sy] = crate::shade::normals::slope_scale(world, (1u64 << l) as f64);
             let (cv, fv) = (layer(&tt.heights, l + 1), layer(&tt.heights, l));
             let own;
