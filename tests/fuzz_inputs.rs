@@ -1,7 +1,7 @@
 //! Malformed input, ≥ 10,000 cases in one bounded run: valid PNG (8 and
 //! 16 bit), TGA, TIFF (f32, u16), ASCII-grid, raw f32 + JSON sidecar files,
 //! packs, scene files, exports (one file damaged, the manifest made to
-//! match) and `compare`'s image and depth inputs are truncated, bit-flipped, given absurd header sizes
+//! match), `compare`'s image and depth inputs and `merge`'s part files are truncated, bit-flipped, given absurd header sizes
 //! (decompression bombs), NaN/inf/no-data patterns and wrong types. Every
 //! case must either load, or fail with a typed error that names the file;
 //! none may panic. A map that loads must hold only finite heights where it
@@ -12,6 +12,7 @@
 //! what it used to reject (or the reverse) fails here. The run prints its case count and time (README "Hard
 //! cases we test").
 
+use serde_json::Value;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -336,6 +337,9 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("upsampled pack", 0),
     ("export", 189),
     ("compare", 30),
+    ("merge cracks", 7),
+    ("merge fly", 13),
+    ("merge golden", 8),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -514,6 +518,99 @@ fn compare_once(
                 Ok(false)
             } else {
                 Err(format!("compare error does not name {name}: {e}"))
+            }
+        }
+    }
+}
+
+/// A part's `--json` output as its `shard` tag and the rest, apart, so that
+/// a case can damage either (the tag holds a few tokens of hundreds).
+type Part = [String; 2];
+
+/// The text of `p`, the tag first.
+fn part_text([tag, rest]: &Part) -> String {
+    match rest.strip_prefix('{') {
+        Some(body) => format!("{{\n  \"shard\": {tag},{body}"),
+        None => rest.clone(),
+    }
+}
+
+/// Two parts of each sweep `merge` joins, as `--json` prints them: a crack
+/// survey and a flight of the fuzz scene (real runs, 4 views or frames at
+/// 32×24), and a golden run's parts (its `scenes` lists interleaved).
+fn merge_seeds(d: &Path) -> Vec<(&'static str, [Part; 2])> {
+    use terraclip::studies::{cracks, fly, shard};
+    let scene = Scene::parse(SCENE, "merge-seed.toml", d).unwrap();
+    let parts = |f: &dyn Fn(shard::Shard) -> Value| {
+        [0, 1].map(|i| {
+            let sh = shard::Shard { index: i, count: 2 };
+            let mut v = shard::tag(f(sh), "sweep", sh, "seed");
+            let tag = v.as_object_mut().unwrap().remove("shard").unwrap();
+            [&tag, &v].map(|v| serde_json::to_string_pretty(v).unwrap())
+        })
+    };
+    let survey = parts(&|sh| {
+        let r = cracks::survey(&scene, &["clipmap".into()], 4, [32, 24], sh, || {}).unwrap();
+        serde_json::to_value(r).unwrap()
+    });
+    let flight = parts(&|sh| {
+        let r = fly::fly(&scene, (4, 0), 5.0, true, sh, |_, _| Ok(())).unwrap();
+        serde_json::to_value(r).unwrap()
+    });
+    let golden = parts(&|sh| {
+        let scenes: Vec<Value> = (0..3)
+            .filter(|k| sh.owns(*k))
+            .map(|k| serde_json::json!({ "name": format!("s{k}"), "pass": true, "pixels": k }))
+            .collect();
+        serde_json::json!({ "adapter": "cpu", "scenes": scenes })
+    });
+    let mut seeds = vec![("cracks", survey), ("fly", flight), ("golden", golden)];
+    for (kind, parts) in &mut seeds {
+        for [tag, _] in parts.iter_mut() {
+            *tag = tag.replace("\"sweep\"", &format!("\"{kind}\""));
+        }
+        assert_eq!(
+            merge_once(&parts.clone().map(|p| part_text(&p)), None),
+            Ok(true),
+            "the {kind} seed"
+        );
+    }
+    seeds
+}
+
+/// `merge` of two part files, one of them damaged: Ok(true) merged (into
+/// an object, never a null standing for parts it dropped), Ok(false) an
+/// error naming a part file or the parts, Err on a panic or an error that
+/// names neither.
+fn merge_once(texts: &[String; 2], dir: Option<&Path>) -> Result<bool, String> {
+    let mut parts = vec![];
+    for (i, t) in texts.iter().enumerate() {
+        match serde_json::from_str::<Value>(t) {
+            Ok(v) => parts.push((format!("part{i}.json"), v)),
+            // The CLI's own parse error, which names the file (tests/shard.rs).
+            Err(_) => return Ok(false),
+        }
+    }
+    match catch_unwind(AssertUnwindSafe(|| {
+        terraclip::studies::shard::merge(&parts, dir)
+    })) {
+        Err(_) => Err(format!("merge panicked on {texts:?}")),
+        // A crack survey's merge sums every part's views: none dropped.
+        Ok(Ok(v)) if v.get("views_surveyed").is_some() => {
+            let each: Option<u64> = parts.iter().map(|p| p.1["views_surveyed"].as_u64()).sum();
+            match each == v["views_surveyed"].as_u64() {
+                true => Ok(true),
+                false => Err(format!("merge dropped a part: {v} from {texts:?}")),
+            }
+        }
+        Ok(Ok(v)) if v.is_object() => Ok(true),
+        Ok(Ok(v)) => Err(format!("merge gave {v} for {texts:?}")),
+        Ok(Err(e)) => {
+            let msg = e.to_string();
+            if msg.contains("part0.json") || msg.contains("part1.json") || msg.contains("parts") {
+                Ok(false)
+            } else {
+                Err(format!("merge error names no part: {msg}"))
             }
         }
     }
@@ -704,6 +801,29 @@ fn ten_thousand_malformed_inputs_never_panic() {
         };
         record("compare", compare_once(&seed, &theirs, Some(depth), named));
         cases += 1;
+    }
+    // `merge`'s part files (600: one of two parts of a crack survey, a
+    // flight or a golden run cut, flipped or edited; a flight's merge
+    // every tenth case also draws its charts).
+    let mut merge_rng = Rng(0x3E26_E5EE_D000_0001);
+    let charts = d.join("merge-charts");
+    for (kind, good) in merge_seeds(&d) {
+        for i in 0..200 {
+            let mut parts = good.clone();
+            let (k, half) = (merge_rng.below(2), merge_rng.below(2));
+            let text = &good[k][half];
+            parts[k][half] = if merge_rng.below(3) == 0 {
+                String::from_utf8_lossy(&mutate(&mut merge_rng, text.as_bytes())).into_owned()
+            } else {
+                mutate_text(&mut merge_rng, text)
+            };
+            let dir = (kind == "fly" && i % 10 == 0).then_some(charts.as_path());
+            record(
+                &format!("merge {kind}"),
+                merge_once(&parts.map(|p| part_text(&p)), dir),
+            );
+            cases += 1;
+        }
     }
     let secs = start.elapsed().as_secs_f64();
     println!(

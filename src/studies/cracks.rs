@@ -22,7 +22,7 @@
 //! schemes of one run.
 
 use crate::clipmap::Layout;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::frame::surface::Surface;
 use crate::render::{self, Image, RenderOptions, Session};
@@ -188,38 +188,56 @@ pub fn survey(
         }
         tick();
     }
-    Ok(report(count, surveyed, out))
+    report(count, surveyed, out).map_err(|why| Error::value("cracks", why))
 }
 
 /// The report over the schemes' tallies.
-fn report(views: usize, views_surveyed: usize, schemes: Vec<SchemeCracks>) -> CrackReport {
+fn report(
+    views: usize,
+    views_surveyed: usize,
+    schemes: Vec<SchemeCracks>,
+) -> std::result::Result<CrackReport, &'static str> {
     let worst = schemes.iter().max_by_key(|r| r.worst_pixels);
-    CrackReport {
+    Ok(CrackReport {
         views,
         views_surveyed,
-        crack_pixels: schemes.iter().map(|r| r.crack_pixels).sum(),
-        lod_sky_pixels: schemes.iter().map(|r| r.lod_sky_pixels).sum(),
-        far_depth_pixels: schemes.iter().map(|r| r.far_depth_pixels).sum(),
+        crack_pixels: sum(schemes.iter().map(|r| r.crack_pixels))?,
+        lod_sky_pixels: sum(schemes.iter().map(|r| r.lod_sky_pixels))?,
+        far_depth_pixels: sum(schemes.iter().map(|r| r.far_depth_pixels))?,
         worst_view: worst.map_or(0, |r| r.worst_view),
         schemes,
-    }
+    })
+}
+
+/// A sum of counts, which parts read from files can push past `usize`.
+fn sum(mut counts: impl Iterator<Item = usize>) -> std::result::Result<usize, &'static str> {
+    counts
+        .try_fold(0usize, |a, c| a.checked_add(c))
+        .ok_or("a count past the largest whole number")
 }
 
 /// Joins the surveys of a sweep's shards ([`crate::studies::shard::merge`]
 /// checks they are its parts): counts summed, and each scheme's worst view
 /// the one with the most holes, the earliest on a tie, as one run picks it.
-pub fn merge(parts: &[&serde_json::Value]) -> serde_json::Value {
-    let reports: Vec<CrackReport> = parts
-        .iter()
-        .filter_map(|v| serde_json::from_value((*v).clone()).ok())
-        .collect();
-    let Some(first) = reports.first() else {
-        return serde_json::Value::Null;
-    };
+/// Parts read from files may disagree or hold counts past `usize`: those
+/// are errors that say why, never a partial sum.
+pub fn merge(parts: &[CrackReport]) -> std::result::Result<CrackReport, String> {
+    let first = parts.first().ok_or("no parts")?;
+    if let Some(k) = parts.iter().position(|p| {
+        p.views != first.views
+            || p.schemes.len() != first.schemes.len()
+            || p.schemes
+                .iter()
+                .zip(&first.schemes)
+                .any(|(a, b)| a.lod != b.lod)
+    }) {
+        return Err(format!(
+            "part {k} surveyed other views or schemes than part 0"
+        ));
+    }
     let schemes = (0..first.schemes.len())
         .map(|j| {
-            let all: Vec<&SchemeCracks> = reports.iter().filter_map(|r| r.schemes.get(j)).collect();
-            let sum = |f: fn(&SchemeCracks) -> usize| all.iter().map(|s| f(s)).sum();
+            let all: Vec<&SchemeCracks> = parts.iter().map(|r| &r.schemes[j]).collect();
             let worst = all
                 .iter()
                 .max_by(|a, b| {
@@ -227,21 +245,22 @@ pub fn merge(parts: &[&serde_json::Value]) -> serde_json::Value {
                         .cmp(&b.worst_pixels)
                         .then(b.worst_view.cmp(&a.worst_view))
                 })
-                .copied();
-            let w = worst.cloned().unwrap_or_else(|| all[0].clone());
-            SchemeCracks {
-                crack_pixels: sum(|s| s.crack_pixels),
-                lod_sky_pixels: sum(|s| s.lod_sky_pixels),
-                far_depth_pixels: sum(|s| s.far_depth_pixels),
-                views_with_cracks: sum(|s| s.views_with_cracks),
-                views_with_lod_sky: sum(|s| s.views_with_lod_sky),
+                .copied()
+                .unwrap_or(&first.schemes[j]);
+            let total = |f: fn(&SchemeCracks) -> usize| sum(all.iter().map(|s| f(s)));
+            Ok(SchemeCracks {
+                crack_pixels: total(|s| s.crack_pixels)?,
+                lod_sky_pixels: total(|s| s.lod_sky_pixels)?,
+                far_depth_pixels: total(|s| s.far_depth_pixels)?,
+                views_with_cracks: total(|s| s.views_with_cracks)?,
+                views_with_lod_sky: total(|s| s.views_with_lod_sky)?,
                 worst_images: None,
-                ..w
-            }
+                ..worst.clone()
+            })
         })
-        .collect();
-    let surveyed = reports.iter().map(|r| r.views_surveyed).sum();
-    serde_json::to_value(report(first.views, surveyed, schemes)).unwrap_or_default()
+        .collect::<std::result::Result<Vec<_>, &str>>()?;
+    let surveyed = sum(parts.iter().map(|r| r.views_surveyed))?;
+    Ok(report(first.views, surveyed, schemes)?)
 }
 
 /// What explains a candidate pixel.
@@ -496,5 +515,34 @@ mod tests {
         assert_eq!(classify(&s, &cam, dir, &domain()), Candidate::LodSky);
         // Straight up.
         assert_eq!(classify(&s, &cam, DVec3::Z, &domain()), Candidate::LodSky);
+    }
+
+    fn part(surveyed: usize, cracks: usize, lod: &str) -> CrackReport {
+        let scheme = SchemeCracks {
+            lod: lod.into(),
+            crack_pixels: cracks,
+            lod_sky_pixels: 1,
+            far_depth_pixels: 0,
+            views_with_cracks: usize::from(cracks > 0),
+            views_with_lod_sky: 1,
+            worst_view: surveyed,
+            worst_pixels: cracks,
+            worst_camera: [0.0; 6],
+            worst_images: None,
+        };
+        report(10, surveyed, vec![scheme]).unwrap()
+    }
+
+    #[test]
+    fn merged_parts_sum_and_refuse_what_cannot_be_summed() {
+        let m = merge(&[part(5, 3, "clipmap"), part(5, 7, "clipmap")]).unwrap();
+        assert_eq!((m.views, m.views_surveyed, m.crack_pixels), (10, 10, 10));
+        assert_eq!((m.lod_sky_pixels, m.schemes[0].views_with_cracks), (2, 2));
+        assert_eq!(m.schemes[0].worst_view, 5);
+        let big = part(5, usize::MAX, "clipmap");
+        let e = merge(&[part(5, 3, "clipmap"), big]).unwrap_err();
+        assert!(e.contains("largest whole number"), "{e}");
+        let e = merge(&[part(5, 3, "clipmap"), part(5, 3, "roam")]).unwrap_err();
+        assert!(e.contains("part 1"), "{e}");
     }
 }

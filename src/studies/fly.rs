@@ -125,25 +125,35 @@ pub fn fly(
         each(i, &img)?;
         prev = Some((img, reference));
     }
-    Ok(summary(
+    summary(
         session.lod.name().to_string(),
         out,
         crate::studies::scaling::peak_rss().unwrap_or(0),
-    ))
+    )
+    .map_err(|why| Error::value("fly", why))
 }
 
 /// The report over `frames`; the first frame of the flight builds, so the
-/// update figures leave it out.
-fn summary(lod: String, frames: Vec<FlyFrame>, peak_rss_bytes: u64) -> FlyReport {
+/// update figures leave it out. Frames read from a part's file may count
+/// texels past `u64`: an error, never a wrapped sum.
+fn summary(
+    lod: String,
+    frames: Vec<FlyFrame>,
+    peak_rss_bytes: u64,
+) -> std::result::Result<FlyReport, String> {
     let later: Vec<&FlyFrame> = frames.iter().filter(|f| f.frame > 0).collect();
-    FlyReport {
+    let texels_updated = later
+        .iter()
+        .try_fold(0u64, |a, f| a.checked_add(f.texels_updated))
+        .ok_or("texels rewritten past the largest whole number")?;
+    Ok(FlyReport {
         lod,
         mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
-        texels_updated: later.iter().map(|f| f.texels_updated).sum(),
+        texels_updated,
         popping_max: frames.iter().map(|f| f.popping).fold(0.0, f64::max),
         peak_rss_bytes,
         frames,
-    }
+    })
 }
 
 /// The parts' reports (in part order) as one flight's: their runs of
@@ -161,7 +171,7 @@ pub fn merge(parts: &[FlyReport]) -> std::result::Result<FlyReport, String> {
         return Err(format!("parts flew {} and {}", first.lod, p.lod));
     }
     let rss = parts.iter().map(|p| p.peak_rss_bytes).max().unwrap_or(0);
-    Ok(summary(first.lod.clone(), frames, rss))
+    summary(first.lod.clone(), frames, rss)
 }
 
 /// Writes the [`charts`] into `dir` as SVG and PNG (each atomically).
@@ -235,4 +245,38 @@ pub fn gif(frames: &[Image]) -> Result<Vec<u8>> {
         }
     }
     Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frames(run: std::ops::Range<usize>, texels: u64) -> FlyReport {
+        let frames = run
+            .map(|frame| FlyFrame {
+                frame,
+                ms: 1.0,
+                update_ms: 0.5,
+                mesh_ms: 0.1,
+                texels_updated: texels,
+                changes: 0,
+                triangles: 2,
+                levels_drawn: 1,
+                pyramid_samples: 0,
+                pyramid_tiles: 0,
+                popping: 0.0,
+            })
+            .collect();
+        summary("clipmap".into(), frames, 0).unwrap()
+    }
+
+    #[test]
+    fn merged_parts_sum_in_order_and_refuse_counts_past_u64() {
+        let m = merge(&[frames(0..2, 3), frames(2..4, 4)]).unwrap();
+        assert_eq!((m.frames.len(), m.texels_updated), (4, 11));
+        let e = merge(&[frames(2..4, 4), frames(0..2, 3)]).unwrap_err();
+        assert!(e.contains("out of order"), "{e}");
+        let e = merge(&[frames(0..2, 3), frames(2..3, u64::MAX)]).unwrap_err();
+        assert!(e.contains("largest whole number"), "{e}");
+    }
 }

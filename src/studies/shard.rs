@@ -126,13 +126,25 @@ pub fn merge(parts: &[(String, Value)], dir: Option<&Path>) -> Result<Value> {
             ));
         }
     }
-    let mut seen = vec![false; first.count];
+    // A tag is read from a file: its numbers are checked before they size
+    // or index anything.
     for ((name, _), t) in parts.iter().zip(&tags) {
-        if std::mem::replace(&mut seen[t.index], true) {
-            return Err(bad(name, format!("part {} given twice", t.index)));
+        if t.index >= t.count {
+            return Err(bad(
+                name,
+                format!("part {} of {} parts does not exist", t.index, t.count),
+            ));
         }
     }
-    if let Some(i) = seen.iter().position(|s| !s) {
+    let mut seen = vec![false; first.count.min(parts.len())];
+    for ((name, _), t) in parts.iter().zip(&tags) {
+        match seen.get_mut(t.index) {
+            Some(s) if *s => return Err(bad(name, format!("part {} given twice", t.index))),
+            Some(s) => *s = true,
+            None => {}
+        }
+    }
+    if let Some(i) = (0..first.count).find(|&i| !seen.get(i).copied().unwrap_or(false)) {
         return Err(bad(
             "parts",
             format!("part {i} of {} is missing", first.count),
@@ -145,7 +157,10 @@ pub fn merge(parts: &[(String, Value)], dir: Option<&Path>) -> Result<Value> {
     let names: Vec<&str> = order.iter().map(|&k| parts[k].0.as_str()).collect();
     let command = first.command.as_str();
     match (command, dir) {
-        ("cracks", None) => Ok(crate::studies::cracks::merge(&values)),
+        ("cracks", None) => to_value(
+            &crate::studies::cracks::merge(&typed(&values, &names)?)
+                .map_err(|why| bad("parts", why))?,
+        ),
         ("golden" | "check-gpu", None) => interleave(&values, &names, "scenes"),
         ("tradeoff", _) => {
             let r = crate::studies::tradeoff::merge(&typed(&values, &names)?)
