@@ -219,6 +219,8 @@ filter = "sinc-blackman"
 scheme = "clipmap"
 n = 15
 layout = "strips"
+[gpu]
+update = "gpu"
 "#;
 
 /// Loads `path`; Ok(true) loaded (and the map is sound), Ok(false) clean
@@ -331,7 +333,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("seed 4 (tif)", 544),
     ("asc", 147),
     ("raw f32 + sidecar", 334),
-    ("scene", 97),
+    ("scene", 125),
     ("geographic tif", 617),
     ("pack", 2),
     ("upsampled pack", 0),

@@ -44,9 +44,10 @@ pub fn scenes(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
-/// Decodes a reference PNG to RGBA8.
+/// Decodes a reference PNG (or any image the `image` crate reads, which
+/// `compare` takes from other renderers) to RGBA8.
 pub fn load_png(path: &Path) -> Result<(u32, u32, Vec<u8>)> {
-    let img = image::open(path).map_err(|e| Error::file(path, format!("unreadable PNG: {e}")))?;
+    let img = image::open(path).map_err(|e| Error::file(path, format!("unreadable image: {e}")))?;
     let rgba = img.to_rgba8();
     Ok((rgba.width(), rgba.height(), rgba.into_raw()))
 }

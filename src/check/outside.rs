@@ -121,20 +121,14 @@ pub struct Outcome {
 /// Reads `path` as an image of `w`×`h` (any format the `image` crate
 /// reads), as RGBA8.
 pub fn load_image(path: &Path, w: u32, h: u32) -> Result<Vec<u8>> {
-    let img = image::open(path)
-        .map_err(|e| Error::file(path, format!("unreadable image: {e}")))?
-        .to_rgba8();
-    if (img.width(), img.height()) != (w, h) {
+    let (iw, ih, rgba) = crate::check::golden::load_png(path)?;
+    if (iw, ih) != (w, h) {
         return Err(Error::file(
             path,
-            format!(
-                "{}x{} where the reference is {w}x{h}",
-                img.width(),
-                img.height()
-            ),
+            format!("{iw}x{ih} where the reference is {w}x{h}"),
         ));
     }
-    Ok(img.into_raw())
+    Ok(rgba)
 }
 
 /// Reads a depth buffer of `w`×`h`: raw little-endian f32 rows (`.f32`,
