@@ -478,4 +478,46 @@ fn sharded_paths_and_their_merges_refuse_what_cannot_be_joined() {
     std::fs::write(&colour, bytes).unwrap();
     fails(&["merge", &e0, &e1, "--dir", out], "SHA-256 differs");
     assert!(!Path::new(out).exists(), "nothing half-written");
+    // A manifest that lists a file outside its folder, with the right
+    // length and hash, is refused before anything is read or written.
+    std::fs::write(p1.join("frame-0001/colour.png"), {
+        let mut b = std::fs::read(&colour).unwrap();
+        b[100] ^= 1;
+        b
+    })
+    .unwrap();
+    let outside = dir.join("outside.txt");
+    std::fs::write(&outside, b"not the export's").unwrap();
+    let manifest = p1.join("manifest.json");
+    let good = std::fs::read_to_string(&manifest).unwrap();
+    let mut m: serde_json::Value = serde_json::from_str(&good).unwrap();
+    let entry = |name: &str| {
+        let mut e = m["files"][0].clone();
+        e["name"] = name.into();
+        e["bytes"] = 16.into();
+        e["sha256"] = "d56ee6ac92d3c155fa1e66592a1c513c006c2f34353c7d4e6c0a8a861c8ba92c".into();
+        e
+    };
+    for name in [
+        "../outside.txt",
+        outside.to_str().unwrap(),
+        "frame-0001/../../outside.txt",
+    ] {
+        let mut bad = m.clone();
+        bad["files"].as_array_mut().unwrap().push(entry(name));
+        std::fs::write(&manifest, bad.to_string()).unwrap();
+        fails(
+            &["merge", &e0, &e1, "--dir", out],
+            "not a path inside the export's folder",
+        );
+        assert!(!Path::new(out).exists(), "nothing written for {name}");
+    }
+    m["frames"][0] = "../frame-0001".into();
+    std::fs::write(&manifest, m.to_string()).unwrap();
+    fails(
+        &["merge", &e0, &e1, "--dir", out],
+        "not a path inside the export's folder",
+    );
+    std::fs::write(&manifest, good).unwrap();
+    assert_eq!(std::fs::read(&outside).unwrap(), b"not the export's");
 }

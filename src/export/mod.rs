@@ -574,7 +574,28 @@ fn open_manifest(dir: &Path) -> Result<Manifest> {
             ),
         ));
     }
+    // `merge --dir` copies every listed file into the joined folder: a
+    // name that climbs out (`..`) or is absolute would read and write
+    // outside both folders.
+    let names = manifest
+        .files
+        .iter()
+        .map(|e| &e.name)
+        .chain(&manifest.frames);
+    if let Some(bad) = names.into_iter().find(|n| !inside(n)) {
+        return Err(Error::file(
+            &mpath,
+            format!("lists '{bad}', which is not a path inside the export's folder"),
+        ));
+    }
     Ok(manifest)
+}
+
+/// Whether `name` is a relative path of plain names (no `.`, `..`, root or
+/// drive), which stays inside the folder it is joined to.
+fn inside(name: &str) -> bool {
+    let mut parts = Path::new(name).components().peekable();
+    parts.peek().is_some() && parts.all(|c| matches!(c, std::path::Component::Normal(_)))
 }
 
 fn checked(dir: &Path, m: &Manifest, name: &str) -> Result<Vec<u8>> {
