@@ -422,6 +422,26 @@ mod tests {
         assert!(err(&bad_fly, None).contains("fly0: not what its command prints"));
         let bad_tradeoff = two("tradeoff", json!({"rows": 1}));
         assert!(err(&bad_tradeoff, None).contains("tradeoff0: not what its command prints"));
+        let bad_cracks = two("cracks", json!({"views": "x"}));
+        assert!(err(&bad_cracks, None).contains("cracks0: not what its command prints"));
+    }
+
+    #[test]
+    fn tag_numbers_from_a_file_neither_index_nor_size_anything() {
+        // Tags as a hand-edited file may hold them.
+        let edited = |index: usize, count: usize| {
+            let mut p = golden(0, 2, &["a"], "x");
+            p.1["shard"]["index"] = index.into();
+            p.1["shard"]["count"] = count.into();
+            (format!("p{index}"), p.1)
+        };
+        let past = [edited(0, 2), edited(5, 2)];
+        assert!(err(&past, None).contains("p5: part 5 of 2 parts does not exist"));
+        // A count of 2^40 would be a 1 TB vector of flags.
+        let huge = [edited(0, 1 << 40), edited(1, 1 << 40)];
+        assert!(err(&huge, None).contains("part 2 of 1099511627776 is missing"));
+        let none = [edited(0, 0), edited(0, 0)];
+        assert!(err(&none, None).contains("part 0 of 0 parts does not exist"));
     }
 
     #[test]
