@@ -12,6 +12,10 @@
 //! what it used to reject (or the reverse) fails here. The run prints its case count and time (README "Hard
 //! cases we test").
 
+mod common;
+
+use common::fuzz::{mutate, mutate_text, Rng};
+use common::packs::pack_once;
 use serde_json::Value;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -19,125 +23,10 @@ use std::time::Instant;
 use terraclip::scene::Scene;
 use terraclip::terrain::Heightmap;
 
-/// xorshift64*: the harness must be reproducible.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
-
 fn dir() -> PathBuf {
     let d = std::env::temp_dir().join(format!("terraclip-fuzz-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-/// Byte-level mutations: truncation, bit flips, 32-bit fields overwritten
-/// with extreme values (huge sizes in headers), appended garbage.
-fn mutate(rng: &mut Rng, seed: &[u8]) -> Vec<u8> {
-    let mut b = seed.to_vec();
-    for _ in 0..1 + rng.below(3) {
-        match rng.below(5) {
-            0 => {
-                let n = rng.below(b.len() + 1);
-                b.truncate(n);
-            }
-            1 => {
-                for _ in 0..1 + rng.below(8) {
-                    if !b.is_empty() {
-                        let i = rng.below(b.len());
-                        b[i] ^= 1 << rng.below(8);
-                    }
-                }
-            }
-            2 => {
-                // Header fields are near the start: aim there half the time.
-                let span = if rng.below(2) == 0 {
-                    b.len().min(64)
-                } else {
-                    b.len()
-                };
-                if span >= 4 {
-                    let i = rng.below(span - 3);
-                    let v: u32 = [u32::MAX, 0x7FFF_FFFF, 0, 0x0001_0000, 65_535][rng.below(5)];
-                    let bytes = if rng.below(2) == 0 {
-                        v.to_be_bytes()
-                    } else {
-                        v.to_le_bytes()
-                    };
-                    b[i..i + 4].copy_from_slice(&bytes);
-                }
-            }
-            3 => {
-                let n = rng.below(64);
-                b.extend((0..n).map(|_| rng.next() as u8));
-            }
-            _ => {
-                if !b.is_empty() {
-                    let i = rng.below(b.len());
-                    b[i] = rng.next() as u8;
-                }
-            }
-        }
-    }
-    b
-}
-
-/// Token-level mutations of text files: numbers become NaN, inf, huge,
-/// negative or no-data values, strings and keys change type or vanish.
-fn mutate_text(rng: &mut Rng, seed: &str) -> String {
-    let mut tokens: Vec<String> = seed
-        .split_inclusive(|c: char| c.is_whitespace() || c == ',' || c == '=')
-        .map(String::from)
-        .collect();
-    let swaps = [
-        "nan",
-        "inf",
-        "-inf",
-        "1e400",
-        "-1",
-        "0",
-        "16",
-        "1e12",
-        "NaN",
-        "\"x\"",
-        "[]",
-        "true",
-        "-9999",
-        "4294967297",
-        "18446744073709551617",
-        "{}",
-        "",
-        "0.0",
-        "2.5",
-    ];
-    for _ in 0..1 + rng.below(3) {
-        let i = rng.below(tokens.len());
-        let tail: String = tokens[i]
-            .chars()
-            .rev()
-            .take_while(|c| c.is_whitespace() || *c == ',' || *c == '=')
-            .collect();
-        let tail: String = tail.chars().rev().collect();
-        tokens[i] = match rng.below(4) {
-            0 => tail,
-            _ => format!("{}{tail}", swaps[rng.below(swaps.len())]),
-        };
-    }
-    let mut s: String = tokens.concat();
-    if rng.below(4) == 0 {
-        let n = rng.below(s.len() + 1);
-        s = s.chars().take(n).collect();
-    }
-    s
 }
 
 fn png16(path: &Path) {
@@ -355,65 +244,6 @@ fn pack_seed(d: &Path, predictor: terraclip::pack::Predictor) -> Vec<u8> {
     let p = d.join("seed.tcz");
     terraclip::pack::file::write(&p, &packed, [10.0; 2], "sinc-blackman:11", "seed").unwrap();
     std::fs::read(&p).unwrap()
-}
-
-/// Reads and decodes a pack: Ok(true) decoded (finite, the sizes the header
-/// says), Ok(false) a clean error naming the file, Err on a panic or an
-/// error that does not name it.
-///
-/// Each case is also opened as a render opens it (mapped, the index
-/// checked, each tile's CRC at decode) and decoded tile by tile through a
-/// window over all of level 0, which needs every tile: it must agree, the
-/// same bits or an error naming the file.
-fn pack_once(p: &Path) -> Result<bool, String> {
-    let r = std::panic::catch_unwind(|| terraclip::pack::file::read_levels(p));
-    let mapped = std::panic::catch_unwind(|| mapped_levels(p));
-    let bits = |l: &[terraclip::pyramid::PyramidLevel]| -> Vec<Vec<u32>> {
-        l.iter()
-            .map(|l| l.data.iter().map(|v| v.to_bits()).collect())
-            .collect()
-    };
-    let names = |e: &terraclip::Error| e.to_string().contains("case.tcz");
-    match (r, mapped) {
-        (Err(_), _) | (_, Err(_)) => Err(format!("panic on {}", p.display())),
-        (Ok(Ok((h, levels))), Ok(m)) => {
-            if levels.len() != h.levels()
-                || levels.iter().any(|l| l.data.iter().any(|v| !v.is_finite()))
-            {
-                return Err(format!("pack decoded badly: {h:?}"));
-            }
-            match m {
-                Ok(m) if bits(&m) == bits(&levels) => Ok(true),
-                Ok(_) => Err("the mapped decode differs from the whole one".into()),
-                Err(e) => Err(format!(
-                    "the mapped decode fails where the whole one does not: {e}"
-                )),
-            }
-        }
-        (Ok(Err(e)), Ok(m)) if names(&e) => match m {
-            Err(e) if names(&e) => Ok(false),
-            Err(e) => Err(format!("mapped pack error does not name the file: {e}")),
-            Ok(_) => Err(format!(
-                "the mapped decode loads what the whole one refuses: {e}"
-            )),
-        },
-        (Ok(Err(e)), _) => Err(format!("pack error does not name the file: {e}")),
-    }
-}
-
-/// Every level of the pack at `p` as a render decodes it.
-fn mapped_levels(p: &Path) -> terraclip::Result<Vec<terraclip::pyramid::PyramidLevel>> {
-    use terraclip::pyramid::{Filter, Pyramid};
-    let r = terraclip::pack::reader::PackReader::open(p)?;
-    let [w, h] = r.header().size();
-    let bad = |e: String| terraclip::Error::BadFile {
-        path: p.to_path_buf(),
-        reason: e,
-    };
-    let filter = Filter::parse(&r.header().filter).map_err(bad)?;
-    let mut py = Pyramid::decoded(std::sync::Arc::new(r), filter, 1).map_err(bad)?;
-    py.decode_window(0, [0, 0, w as i64 - 1, h as i64 - 1])?;
-    Ok(py.levels)
 }
 
 /// A small export with every varying and both effect textures: jacksboro

@@ -642,6 +642,7 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     bytes: &[u8],
     coarse: Option<&C>,
     quant: Quant,
+    range: [f32; 2],
     rect: (usize, usize, usize, usize),
 ) -> Result<(Vec<f32>, Vec<bool>), String> {
     let n = rect.2 * rect.3;
@@ -652,7 +653,15 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         stride: rect.2,
         x0: 0,
     };
-    decode_tile_into(bytes, coarse, quant, rect, &mut Scratch::default(), out)?;
+    decode_tile_into(
+        bytes,
+        coarse,
+        quant,
+        range,
+        rect,
+        &mut Scratch::default(),
+        out,
+    )?;
     Ok((data, nodata))
 }
 
@@ -679,11 +688,18 @@ pub(crate) struct TileOut<'a> {
     pub x0: usize,
 }
 
-/// [`decode_tile`] into `out`, with `scratch`'s buffers.
+/// [`decode_tile`] into `out`, with `scratch`'s buffers. Every valid
+/// sample must decode into `range`, the level's range as the header gives
+/// it (the encoder's own reconstruction's least and greatest valid
+/// sample, so the bounds are exact): a tile whose checksum was made to
+/// match damaged bytes is otherwise free to decode to NaN or to any
+/// height.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     bytes: &[u8],
     coarse: Option<&C>,
     quant: Quant,
+    [lo, hi]: [f32; 2],
     rect: (usize, usize, usize, usize),
     scratch: &mut Scratch,
     out: TileOut,
@@ -878,6 +894,21 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     if ans.iter().any(|a| !a.is_empty()) {
         return Err("coded words left over".into());
     }
+    for r in 0..h {
+        let row = r * stride + ox..r * stride + ox + w;
+        let bad = data[row.clone()]
+            .iter()
+            .zip(&nodata[row])
+            .position(|(&v, &nd)| !nd && !(lo..=hi).contains(&v));
+        if let Some(i) = bad {
+            return Err(format!(
+                "sample ({}, {}) decodes to {}, outside the level's range [{lo}, {hi}]",
+                x0 + i,
+                y0 + r,
+                data[r * stride + ox + i]
+            ));
+        }
+    }
     // The emptied streams' buffers, for the next tile.
     *words = ans.map(|a| a.into_compressed().unwrap_or_default());
     Ok(())
@@ -1019,7 +1050,7 @@ impl Packed {
         let top = l + 1 == self.levels.len();
         let c = (!top).then_some(coarse);
         let (data, nodata) =
-            decode_tile(&lv.tiles[ty * nx + tx], c, lv.quant, rect).map_err(err)?;
+            decode_tile(&lv.tiles[ty * nx + tx], c, lv.quant, lv.range, rect).map_err(err)?;
         Ok(Tile {
             rect: [rect.0, rect.1, rect.2, rect.3],
             data,
@@ -1059,13 +1090,12 @@ impl Packed {
                     };
                     let bytes = &lv.tiles[ty * nx + tx];
                     let coarse = (!top).then_some(c);
-                    decode_tile_into(bytes, coarse, lv.quant, rect, &mut scratch, out).map_err(
-                        |reason| TileError {
+                    decode_tile_into(bytes, coarse, lv.quant, lv.range, rect, &mut scratch, out)
+                        .map_err(|reason| TileError {
                             level: l,
                             tile: [tx, ty],
                             reason,
-                        },
-                    )?;
+                        })?;
                 }
                 Ok(())
             })?;

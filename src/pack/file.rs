@@ -334,14 +334,42 @@ pub(crate) fn parse_index(
     mut at: usize,
     file_len: u64,
 ) -> std::result::Result<(Vec<Vec<Entry>>, u64), String> {
+    // The header's sizes say how many entries follow; the file must hold
+    // them before anything is sized from them (a forged header can claim
+    // 2^40 tiles in a file of 2 KB).
+    let counts: Vec<usize> = header
+        .levels
+        .iter()
+        .map(|s| s.width.div_ceil(header.tile) * s.height.div_ceil(header.tile))
+        .collect();
+    let entries = counts
+        .iter()
+        .try_fold(0u64, |a, &n| a.checked_add(n as u64));
+    let room = file_len.saturating_sub(at as u64);
+    match entries.and_then(|n| n.checked_mul(ENTRY as u64)) {
+        Some(need) if need <= room => {}
+        _ => {
+            return Err(format!(
+                "index: the header's {} levels of {}² tiles need {} entries of {ENTRY} bytes, \
+                 more than the {room} bytes after the header",
+                header.levels.len(),
+                header.tile,
+                entries.map_or("over 2^64".into(), |n| n.to_string())
+            ))
+        }
+    }
     let mut out = Vec::with_capacity(header.levels.len());
     let mut total = 0u64;
+    // Tiles follow the index in its order, each where the one before ends:
+    // an entry elsewhere overlaps another tile or leaves unread bytes.
+    let mut next = (at + ENTRY * counts.iter().sum::<usize>()) as u64;
+    let mut prev = None;
     for (l, spec) in header.levels.iter().enumerate() {
         let (nx, ny) = (
             spec.width.div_ceil(header.tile),
             spec.height.div_ceil(header.tile),
         );
-        let mut entries = Vec::with_capacity(nx * ny);
+        let mut entries = Vec::with_capacity(counts[l]);
         for t in 0..nx * ny {
             let entry = bytes
                 .get(at..at + ENTRY)
@@ -363,7 +391,22 @@ pub(crate) fn parse_index(
                     e.offset
                 ));
             }
+            if e.offset != next {
+                // The entry before may be the liar: a length that is wrong
+                // leaves that tile's bytes unlike its checksum. Name it.
+                if let Some((pl, pt, pnx, p)) = prev {
+                    tile_bytes(bytes, p, || tile_name(pl, pt, pnx))?;
+                }
+                return Err(format!(
+                    "{}: offset {} is not where the tile before it ends ({next}): \
+                     tiles overlap or leave a gap",
+                    tile_name(l, t, nx),
+                    e.offset
+                ));
+            }
+            next += e.len as u64;
             total += e.len as u64;
+            prev = Some((l, t, nx, e));
             entries.push(e);
         }
         out.push(entries);
@@ -440,6 +483,9 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
             h.tile
         ));
     }
+    // Every reader needs the filter: the whole decode as much as the
+    // tile-by-tile one, which refused a name the whole decode let through.
+    Filter::parse(&h.filter).map_err(|r| format!("filter: {r}"))?;
     if !(h.max_error.is_finite() && h.max_error >= 0.0) {
         return Err(format!("max error {} is not finite and ≥ 0", h.max_error));
     }
@@ -465,19 +511,35 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
                 spec.quant
             ));
         }
+        let [lo, hi] = spec.range;
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return Err(format!(
+                "level {l}'s range [{lo}, {hi}] is not two finite heights, least first"
+            ));
+        }
     }
     let [w, hh] = [h.levels[0].width, h.levels[0].height];
     crate::terrain::check_side(w as u64, hh as u64)?;
     for (l, pair) in h.levels.windows(2).enumerate() {
         let want = ((pair[0].width - 1) / 2 + 1, (pair[0].height - 1) / 2 + 1);
+        if (pair[0].width, pair[0].height) == (1, 1) {
+            return Err(format!(
+                "level {} follows level {l}, which is 1×1: a pyramid ends at its first 1×1 level \
+                 (the header lists {} levels)",
+                l + 1,
+                h.levels.len()
+            ));
+        }
         if (pair[1].width, pair[1].height) != want {
             return Err(format!(
-                "level {} is {}×{}, not the half of level {l} ({}×{})",
+                "level {} is {}×{}, not {}×{}, the half of level {l} ({}×{})",
                 l + 1,
                 pair[1].width,
                 pair[1].height,
                 want.0,
-                want.1
+                want.1,
+                pair[0].width,
+                pair[0].height
             ));
         }
     }

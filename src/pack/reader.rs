@@ -123,7 +123,7 @@ impl TileSource for PackReader {
         let [w, h] = self.header.level_size(l);
         let rect = tile_rect(w, h, self.header.tile, tx, ty);
         let c = (l + 1 < self.header.levels()).then_some(coarse);
-        let out = codec::decode_tile(bytes, c, self.quant[l], rect)
+        let out = codec::decode_tile(bytes, c, self.quant[l], self.header.level_range(l), rect)
             .map_err(|r| format!("{}: {r}", name()));
         huge::drop_mapped(
             &self.map,

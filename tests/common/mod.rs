@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod fuzz;
+pub mod packs;
 use std::collections::HashMap;
 use std::sync::Arc;
 use terraclip::clipmap::region::Rect;

@@ -1,0 +1,388 @@
+//! Packs fuzzed past their checksums. Each case damages one seed pack,
+//! then makes the header CRC, every index offset and every tile CRC right
+//! again ([`common::packs::Parts`]), so the damage reaches the header's
+//! parser, the index checks, the tile parser and the reconstruction
+//! behind them. The damage: the header JSON edited as a tree (numbers,
+//! strings, keys, nesting) or as text; one tile's bytes cut, flipped or
+//! overwritten; tiles swapped, dropped or repeated; index fields
+//! overwritten (the index has no checksum of its own).
+//!
+//! Seeds: lossy packs with each predictor, lossless packs on a lattice and
+//! as bit patterns, and a pack with mixed and all-no-data tiles.
+//!
+//! Every case must load (finite, equal whole and tile by tile) or be an
+//! error naming the file, never a panic; one case in 25 also goes through
+//! the CLI binary (`info`, `unpack`), which must exit with a code, never
+//! a signal. The run counts how many cases reach each stage and asserts
+//! the counts exactly (the run is seeded): a check that starts refusing
+//! what it passed, or the reverse, changes them. Each stage must be
+//! reached by at least 10 % of the cases.
+
+mod common;
+
+use common::fuzz::{mutate, mutate_text, Rng};
+use common::packs::{pack_once, Parts};
+use serde_json::{json, Value};
+use std::panic::catch_unwind;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+use terraclip::pack::{file, Lattice, Packed, Predictor};
+use terraclip::pyramid::{Pyramid, PyramidLevel};
+use terraclip::terrain::Heightmap;
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("terraclip-fuzz-packs-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The pack of `map` at `e` in 16² tiles.
+fn pack(d: &Path, map: &Heightmap, e: f64, predictor: Predictor) -> Parts {
+    let levels = Pyramid::build(map, Default::default(), 64).levels;
+    let (packed, _) = Packed::encode_with(&levels, e, 16, map.lattice, predictor);
+    let p = d.join("seed.tcz");
+    file::write(&p, &packed, map.cell_size, "sinc-blackman:11", "seed").unwrap();
+    Parts::of(&std::fs::read(&p).unwrap())
+}
+
+/// The seeds: (name, parts).
+fn seeds(d: &Path) -> Vec<(&'static str, Parts)> {
+    let map = common::terrain(9, 40, 30);
+    // On a lattice of half-metre codes, as a 16-bit PNG with a sidecar is.
+    let codes: Vec<f32> = map
+        .data()
+        .iter()
+        .map(|v| 100.0 + (v * 20.0).round() * 0.5)
+        .collect();
+    let mut lattice = Heightmap::from_values(40, 30, codes, None, [10.0; 2], "test").unwrap();
+    lattice.lattice = Some(Lattice {
+        offset: 100.0,
+        scale: 0.5,
+    });
+    // 48 × 40: tile (1, 0) all no-data, tile (0, 1) half no-data.
+    let holes: Vec<f32> = (0..48 * 40)
+        .map(|i| {
+            let (x, y) = (i % 48, i / 48);
+            let hole =
+                (16..32).contains(&x) && y < 16 || (x < 16 && (16..32).contains(&y) && x > y - 16);
+            if hole {
+                f32::NAN
+            } else {
+                (x as f32 * 0.7).sin() * 40.0 + y as f32 * 3.0
+            }
+        })
+        .collect();
+    let holes = Heightmap::from_values(48, 40, holes, None, [10.0; 2], "test").unwrap();
+    vec![
+        ("lifting", pack(d, &map, 1.0, Predictor::Lifting)),
+        ("upsampled", pack(d, &map, 1.0, Predictor::Upsampled)),
+        ("lattice", pack(d, &lattice, 0.0, Predictor::Lifting)),
+        ("bits", pack(d, &map, 0.0, Predictor::Lifting)),
+        ("no-data", pack(d, &holes, 0.5, Predictor::Lifting)),
+    ]
+}
+
+/// One edit of a JSON tree: a node chosen at random is changed for
+/// another number, another string, fewer or more elements, a key removed
+/// or unknown, or wrapped in an array or object.
+fn edit_json(rng: &mut Rng, v: &mut Value) {
+    let mut nodes = 0;
+    count(v, &mut nodes);
+    let target = rng.below(nodes);
+    let mut at = 0;
+    edit_at(rng, v, target, &mut at);
+}
+
+fn count(v: &Value, n: &mut usize) {
+    *n += 1;
+    match v {
+        Value::Array(a) => a.iter().for_each(|v| count(v, n)),
+        Value::Object(o) => o.values().for_each(|v| count(v, n)),
+        _ => {}
+    }
+}
+
+fn edit_at(rng: &mut Rng, v: &mut Value, target: usize, at: &mut usize) -> bool {
+    if *at == target {
+        edit_node(rng, v);
+        return true;
+    }
+    *at += 1;
+    match v {
+        Value::Array(a) => a.iter_mut().any(|v| edit_at(rng, v, target, at)),
+        Value::Object(o) => o.values_mut().any(|v| edit_at(rng, v, target, at)),
+        _ => false,
+    }
+}
+
+fn edit_node(rng: &mut Rng, v: &mut Value) {
+    // Wrapping in another level of nesting, any node.
+    if rng.below(12) == 0 {
+        *v = if rng.below(2) == 0 {
+            json!([v.clone()])
+        } else {
+            json!({ "v": v.clone() })
+        };
+        return;
+    }
+    match v {
+        Value::Number(n) => {
+            let x = n.as_f64().unwrap();
+            let swaps = [
+                0.0,
+                -1.0,
+                1.0,
+                2.0,
+                3.0,
+                1e12,
+                4294967297.0,
+                1.8e19,
+                -1e-30,
+                1e39,
+                3.4e38,
+                x * 2.0,
+                x + 1.0,
+                x - 1.0,
+                x / 2.0,
+                x + 0.25,
+                x * 0.999,
+            ];
+            let y = swaps[rng.below(swaps.len())];
+            *v = if y.fract() == 0.0 && y.abs() < 1e15 && n.is_u64() && y >= 0.0 {
+                json!(y as u64)
+            } else {
+                json!(y)
+            };
+        }
+        Value::String(_) => {
+            let s = [
+                "",
+                "x",
+                "sinc-blackman:3",
+                "box",
+                "lanczos:3",
+                "sinc-blackman:11",
+            ];
+            *v = match rng.below(4) {
+                0 => json!(1),
+                _ => json!(s[rng.below(s.len())]),
+            };
+        }
+        Value::Array(a) => match rng.below(4) {
+            0 if !a.is_empty() => {
+                a.remove(rng.below(a.len()));
+            }
+            1 if !a.is_empty() => {
+                let e = a[rng.below(a.len())].clone();
+                a.insert(rng.below(a.len() + 1), e);
+            }
+            2 if a.len() >= 2 => {
+                let (i, j) = (rng.below(a.len()), rng.below(a.len()));
+                a.swap(i, j);
+            }
+            _ => a.push(json!(0)),
+        },
+        Value::Object(o) => {
+            let keys: Vec<String> = o.keys().cloned().collect();
+            match rng.below(3) {
+                0 if !keys.is_empty() => {
+                    o.remove(&keys[rng.below(keys.len())]);
+                }
+                1 if !keys.is_empty() => {
+                    let k = &keys[rng.below(keys.len())];
+                    let val = o.remove(k).unwrap();
+                    o.insert(format!("{k}_"), val);
+                }
+                _ => {
+                    o.insert("extra".into(), json!(1));
+                }
+            }
+        }
+        Value::Bool(b) => *b = !*b,
+        Value::Null => *v = json!(0),
+    }
+}
+
+/// One damaged case of `seed`.
+fn damage(rng: &mut Rng, seed: &Parts) -> Vec<u8> {
+    let mut p = seed.clone();
+    match rng.below(20) {
+        // The header as a tree (7 in 20).
+        0..=6 => {
+            let mut h = p.header();
+            for _ in 0..1 + rng.below(2) {
+                edit_json(rng, &mut h);
+            }
+            p = p.with_header(&h);
+        }
+        // The header as text (1 in 20).
+        7 => p.json = mutate_text(rng, &String::from_utf8_lossy(&p.json)).into_bytes(),
+        // One tile's bytes (8 in 20), the coarse levels' tiles (the last,
+        // few) as often as level 0's.
+        8..=15 => {
+            let n = p.tiles.len();
+            let t = if rng.below(2) == 0 {
+                n - 1 - rng.below(n.min(3))
+            } else {
+                rng.below(n)
+            };
+            p.tiles[t] = mutate(rng, &p.tiles[t]);
+        }
+        // Tiles swapped, dropped or repeated (2 in 20).
+        16 | 17 => {
+            let n = p.tiles.len();
+            let (i, j) = (rng.below(n), rng.below(n));
+            match rng.below(3) {
+                0 => p.tiles.swap(i, j),
+                1 => {
+                    p.tiles.remove(i);
+                }
+                _ => p.tiles[i] = p.tiles[j].clone(),
+            }
+        }
+        // An index field overwritten, offsets left to lie (2 in 20).
+        _ => {
+            let mut bytes = p.assemble();
+            let k = rng.below(p.tiles.len());
+            let at = p.entry_at(k) + [0, 8, 12][rng.below(3)];
+            let v: u32 = [0, 1, u32::MAX, 0x7FFF_FFFF, 16][rng.below(5)];
+            bytes[at..at + 4].copy_from_slice(&v.to_le_bytes());
+            return bytes;
+        }
+    }
+    p.assemble()
+}
+
+/// How far a case gets: header parsed, index parsed, the coarsest
+/// level's first tile decoded, and the next level reconstructed whole
+/// from the coarsest (the first level a predictor, lifting or upsampled,
+/// reconstructs). Each stage through the public API a reader would use;
+/// a panic in any is a failure.
+fn stages(p: &Path) -> Result<[bool; 4], String> {
+    catch_unwind(|| {
+        let header = file::read_header(p).is_ok();
+        let index = terraclip::pack::reader::PackReader::open(p).is_ok();
+        let (tile, level) = match file::read(p) {
+            Ok((_, packed)) => {
+                let top = packed.levels.len() - 1;
+                let tile = packed
+                    .decode_tile(top, [0, 0], &PyramidLevel::single())
+                    .is_ok();
+                let level = packed
+                    .decode_level(top, None)
+                    .and_then(|c| packed.decode_level(top - 1, Some(&c)))
+                    .is_ok();
+                (tile, level)
+            }
+            Err(_) => (false, false),
+        };
+        [header, index, tile, level]
+    })
+    .map_err(|_| format!("panic on {}", p.display()))
+}
+
+/// `terraclip ARGS` must exit with a code, never a signal, and a failure
+/// must name the case's file without a panic.
+fn cli(args: &[&std::ffi::OsStr], file: &str) -> Result<(), String> {
+    let out = Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    match out.status.code() {
+        None => Err(format!("{args:?} killed by a signal: {:?}", out.status)),
+        Some(0) => Ok(()),
+        Some(_) if err.contains(file) && !err.contains("panicked") => Ok(()),
+        Some(c) => Err(format!("{args:?} exit {c}: {err}")),
+    }
+}
+
+/// Cases per seed.
+const CASES: usize = 1000;
+
+/// Per seed: cases reaching the header, the index, the first tile, the
+/// first predicted level, and loading whole.
+const EXPECTED: [(&str, [usize; 5]); 5] = [
+    ("lifting", [663, 566, 429, 321, 33]),
+    ("upsampled", [691, 565, 430, 334, 36]),
+    ("lattice", [663, 565, 454, 348, 64]),
+    ("bits", [683, 579, 446, 350, 62]),
+    ("no-data", [665, 567, 450, 361, 31]),
+];
+
+#[test]
+fn packs_with_their_checksums_made_right_reach_every_stage() {
+    let d = dir();
+    let start = Instant::now();
+    let mut rng = Rng(0x7C2_C8C5_F1ED_0001);
+    let mut failures = vec![];
+    let mut got = vec![];
+    let case = d.join("case.tcz");
+    let out = d.join("case-out.f32");
+    let mut through_cli = 0;
+    for (name, seed) in seeds(&d) {
+        // The seed itself reaches every stage.
+        std::fs::write(&case, seed.assemble()).unwrap();
+        assert_eq!(stages(&case), Ok([true; 4]), "{name}");
+        assert_eq!(pack_once(&case), Ok(true), "{name}");
+        let mut reached = [0usize; 5];
+        for i in 0..CASES {
+            std::fs::write(&case, damage(&mut rng, &seed)).unwrap();
+            match stages(&case) {
+                Ok(s) => {
+                    for (r, &ok) in reached.iter_mut().zip(&s) {
+                        *r += usize::from(ok);
+                    }
+                }
+                Err(e) => failures.push(e),
+            }
+            match pack_once(&case) {
+                Ok(loaded) => reached[4] += usize::from(loaded),
+                Err(e) => failures.push(format!("{name} case {i}: {e}")),
+            }
+            if i % 25 == 0 {
+                through_cli += 1;
+                let _ = std::fs::remove_file(&out);
+                for args in [
+                    vec!["info".as_ref(), case.as_os_str()],
+                    vec![
+                        "unpack".as_ref(),
+                        case.as_os_str(),
+                        "-o".as_ref(),
+                        out.as_os_str(),
+                    ],
+                ] {
+                    if let Err(e) = cli(&args, "case.tcz") {
+                        failures.push(format!("{name} case {i}: {e}"));
+                    }
+                }
+            }
+        }
+        println!(
+            "{name}: of {CASES}, header {}, index {}, first tile {}, first predicted level {}, loaded {}",
+            reached[0], reached[1], reached[2], reached[3], reached[4]
+        );
+        for (stage, &n) in ["header", "index", "first tile", "first predicted level"]
+            .iter()
+            .zip(&reached)
+        {
+            assert!(n * 10 >= CASES, "{name}: {stage} reached by {n} of {CASES}");
+        }
+        got.push((name, reached));
+    }
+    println!(
+        "fuzz packs: {} cases ({through_cli} through the CLI twice) in {:.1} s",
+        CASES * got.len(),
+        start.elapsed().as_secs_f64()
+    );
+    let _ = std::fs::remove_dir_all(&d);
+    assert!(
+        failures.is_empty(),
+        "{} failures, first: {}",
+        failures.len(),
+        failures[0]
+    );
+    assert_eq!(through_cli, 5 * CASES.div_ceil(25));
+    assert_eq!(got, EXPECTED, "cases reaching each stage, per seed");
+}

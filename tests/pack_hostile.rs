@@ -1,0 +1,279 @@
+//! Hostile pack files: each one built with a valid magic, version and
+//! header checksum (and, where the damage is past the index, every tile
+//! checksum made right), so that it reaches the check it is aimed at.
+//! Each must be an error that names the file and what is wrong, from the
+//! library and from the CLI, whose `info` and `unpack` must exit with an
+//! error code, never be killed by a signal (an allocation sized by a
+//! forged header aborts the process: SIGABRT, exit 134).
+
+mod common;
+
+use common::packs::{mapped_levels, Parts};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use terraclip::pack::{file, Packed, Predictor};
+
+fn dir() -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pack-hostile");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A lossy pack of a 40 × 30 procedural map in 16² tiles: level 0 has
+/// 3 × 2 tiles, the last column 8 samples wide.
+fn seed() -> Parts {
+    let map = common::terrain(9, 40, 30);
+    let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
+    let (packed, _) = Packed::encode_with(&levels, 1.0, 16, None, Predictor::Lifting);
+    // A name of its own: the tests run at once, in one folder.
+    static SEEDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = SEEDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let p = dir().join(format!("seed{k}.tcz"));
+    file::write(&p, &packed, [10.0; 2], "sinc-blackman:11", "seed").unwrap();
+    Parts::of(&std::fs::read(&p).unwrap())
+}
+
+/// The error `terraclip ARGS` prints, checked to be an exit with a code
+/// (not a signal) other than 0, naming `name`, without a panic.
+fn cli_error(args: &[&std::ffi::OsStr], name: &str) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.code().is_some_and(|c| c != 0),
+        "{args:?}: {:?}, {err}",
+        out.status
+    );
+    assert!(err.contains(name) && !err.contains("panicked"), "{err}");
+    err
+}
+
+/// Writes `bytes` as `name`.tcz and checks that the whole read, the
+/// mapped open (with every tile decoded, as a render meets them) and the
+/// CLI's `unpack` all refuse it, naming the file and saying `why`; and
+/// `info`, which reads the header, index and tiles' checksums but decodes
+/// nothing, where `info_sees` it.
+fn refused(name: &str, bytes: &[u8], why: &str, info_sees: bool) {
+    let p = dir().join(format!("{name}.tcz"));
+    std::fs::write(&p, bytes).unwrap();
+    let file_name = format!("{name}.tcz");
+    // Read and decoded whole, without the size check `read_levels` makes
+    // first (which refuses a forged size before the index is read).
+    let whole = file::read(&p)
+        .and_then(|(_, packed)| {
+            packed.decode().map_err(|e| terraclip::Error::BadFile {
+                path: p.clone(),
+                reason: e.to_string(),
+            })
+        })
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        whole.contains(&file_name) && whole.contains(why),
+        "{name}: {whole}"
+    );
+    let levels = file::read_levels(&p).map(|_| ()).unwrap_err().to_string();
+    assert!(levels.contains(&file_name), "{name}: {levels}");
+    let mapped = mapped_levels(&p).map(|_| ()).unwrap_err().to_string();
+    assert!(
+        mapped.contains(&file_name) && mapped.contains(why),
+        "{name}: {mapped}"
+    );
+    if info_sees {
+        let info = cli_error(&["info".as_ref(), p.as_os_str()], &file_name);
+        assert!(info.contains(why), "{name}: info: {info}");
+    }
+    let out = dir().join(format!("{name}.f32"));
+    let unpack = cli_error(
+        &[
+            "unpack".as_ref(),
+            p.as_os_str(),
+            "-o".as_ref(),
+            out.as_os_str(),
+        ],
+        &file_name,
+    );
+    assert!(unpack.contains(why), "{name}: unpack: {unpack}");
+    assert!(!out.exists(), "{name}: unpack wrote {}", out.display());
+}
+
+/// The header's levels as (width, height) of a chain halving from
+/// `side`² down to 1 × 1, each quantised and ranged as `like`.
+fn chain(side: usize, like: &Value) -> Vec<Value> {
+    let mut out = vec![];
+    let (mut w, mut h) = (side, side);
+    loop {
+        let mut l = like.clone();
+        l["width"] = json!(w);
+        l["height"] = json!(h);
+        out.push(l);
+        if (w, h) == (1, 1) {
+            return out;
+        }
+        (w, h) = ((w - 1) / 2 + 1, (h - 1) / 2 + 1);
+    }
+}
+
+#[test]
+fn the_seed_is_sound() {
+    let bytes = seed().assemble();
+    let p = dir().join("sound.tcz");
+    std::fs::write(&p, &bytes).unwrap();
+    file::read_levels(&p).unwrap();
+    mapped_levels(&p).unwrap();
+}
+
+#[test]
+fn a_forged_header_of_a_million_squared_map_in_2x2_tiles_is_an_error() {
+    // 2^40 index entries claimed by a file of about 2 KB: the index's
+    // vector was sized from the header before a byte of it was read.
+    let s = seed();
+    let mut h = s.header();
+    let like = h["levels"][0].clone();
+    h["tile"] = json!(2);
+    h["levels"] = Value::Array(chain(1 << 20, &like));
+    let forged = Parts {
+        json: serde_json::to_vec(&h).unwrap(),
+        tiles: vec![],
+    }
+    .assemble();
+    assert!(forged.len() < 4096, "{} bytes", forged.len());
+    refused(
+        "forged",
+        &forged,
+        "index: the header's 21 levels of 2² tiles need",
+        true,
+    );
+}
+
+#[test]
+fn a_header_of_a_thousand_levels_is_an_error() {
+    // The seed's levels halved on down to 1 × 1 (each the half of the one
+    // before, as the header requires), then 1 × 1 levels to 1,000.
+    let s = seed();
+    let mut h = s.header();
+    let mut levels = h["levels"].as_array().unwrap().clone();
+    let last = levels.pop().unwrap();
+    let side = |k: &str| last[k].as_u64().unwrap() as usize;
+    let mut tail = vec![];
+    let (mut w, mut hh) = (side("width"), side("height"));
+    loop {
+        let mut l = last.clone();
+        l["width"] = json!(w);
+        l["height"] = json!(hh);
+        tail.push(l);
+        if (w, hh) == (1, 1) {
+            break;
+        }
+        (w, hh) = ((w - 1) / 2 + 1, (hh - 1) / 2 + 1);
+    }
+    levels.extend(tail);
+    let one = levels.last().unwrap().clone();
+    levels.resize(1000, one);
+    h["levels"] = Value::Array(levels);
+    let forged = s.with_header(&h).assemble();
+    refused(
+        "levels",
+        &forged,
+        "a pyramid ends at its first 1×1 level (the header lists 1000 levels)",
+        true,
+    );
+}
+
+#[test]
+fn tile_offsets_that_overlap_are_an_error() {
+    let s = seed();
+    let mut bytes = s.assemble();
+    // Tile 1 said to start where tile 0 does.
+    let first = bytes[s.entry_at(0)..][..8].to_vec();
+    let at = s.entry_at(1);
+    bytes[at..at + 8].copy_from_slice(&first);
+    refused("overlap", &bytes, "level 0 tile (1, 0): offset", true);
+    assert!(std::str::from_utf8(&bytes).is_err());
+}
+
+#[test]
+fn index_lengths_that_sum_past_the_file_are_an_error() {
+    let s = seed();
+    let mut bytes = s.assemble();
+    // Each tile inside the file, but tile 0 as long as the rest of it,
+    // its checksum made to match that span.
+    let at = s.entry_at(0);
+    let offset = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let len = (bytes.len() - offset) as u32;
+    let crc = crc32fast::hash(&bytes[offset..]);
+    bytes[at + 8..at + 12].copy_from_slice(&len.to_le_bytes());
+    bytes[at + 12..at + 16].copy_from_slice(&crc.to_le_bytes());
+    refused("lengths", &bytes, "tiles overlap or leave a gap", true);
+}
+
+#[test]
+fn a_level_range_that_is_not_two_finite_heights_is_an_error() {
+    let s = seed();
+    let last = s.header()["levels"].as_array().unwrap().len() - 1;
+    // JSON has no NaN (serde writes it as null) and no infinity (1e39,
+    // past f32, is refused as out of range); a range least last is as
+    // wrong.
+    for (k, (l, range, why)) in [
+        (
+            0,
+            json!([null, 1.0]),
+            "header is not valid: invalid type: null, expected f32",
+        ),
+        (
+            last,
+            json!([1e39, 1e39]),
+            "header is not valid: number out of range",
+        ),
+        (
+            0,
+            json!([5.0, 1.0]),
+            "level 0's range [5, 1] is not two finite heights, least first",
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut h = s.header();
+        h["levels"][l]["range"] = range;
+        refused(
+            &format!("range{k}"),
+            &s.with_header(&h).assemble(),
+            why,
+            true,
+        );
+    }
+}
+
+#[test]
+fn a_tile_that_decodes_to_more_samples_than_it_holds_is_an_error() {
+    // Tile (2, 0) of level 0 is 8 × 16; tile (0, 0)'s stream codes 16 × 16.
+    let mut s = seed();
+    s.tiles[2] = s.tiles[0].clone();
+    refused(
+        "more",
+        &s.assemble(),
+        "level 0 tile (2, 0): coded words left over",
+        false,
+    );
+}
+
+#[test]
+fn a_tile_that_decodes_outside_its_level_range_is_an_error() {
+    // The header's range of level 0 narrowed by a metre at the top: the
+    // tile holding the highest sample decodes above it.
+    let s = seed();
+    let mut h = s.header();
+    let hi = h["levels"][0]["range"][1].as_f64().unwrap();
+    h["levels"][0]["range"][1] = json!(hi - 1.0);
+    refused(
+        "above",
+        &s.with_header(&h).assemble(),
+        "outside the level's range",
+        false,
+    );
+}
