@@ -382,8 +382,15 @@ impl Pyramid {
 
     /// Tiles a decoded pyramid holds now, every level counted.
     pub fn tiles_resident(&self) -> Option<u64> {
+        Some(self.tiles_resident_per_level()?.iter().sum())
+    }
+
+    /// [`Pyramid::tiles_resident`] level by level, finest first, so a
+    /// bound can be held on each level rather than on a total that one
+    /// level's growth can hide in.
+    pub fn tiles_resident_per_level(&self) -> Option<Vec<u64>> {
         let d = self.decoded.as_ref()?;
-        Some(d.resident.iter().map(|r| r.len() as u64).sum())
+        Some(d.resident.iter().map(|r| r.len() as u64).collect())
     }
 
     /// [`Pyramid::build_around`] for a decoded pyramid.
