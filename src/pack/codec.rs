@@ -1122,3 +1122,38 @@ impl Packed {
             .sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The raw fallback: where no residual reconstructs a sample within
+    /// the bound, its f32 bits are sent whole and come back exact.
+    #[test]
+    fn a_sample_no_residual_reaches_is_coded_raw() {
+        // Upsampled: 1e9 + 1e7 metres over steps of 0.02 is past 2^24.
+        let up = Quant::Upsampled { max_error: 0.01 };
+        let c = up.code(1e9, -1e7);
+        assert_eq!(
+            (c.raw, c.rec.to_bits()),
+            (Some(1e9f32.to_bits()), 1e9f32.to_bits())
+        );
+        // Within 2^24 steps it is a residual.
+        let c = up.code(-1e7 + 1000.0, -1e7);
+        assert_eq!(c.raw, None);
+        assert!((c.rec as f64 - (-1e7 + 1000.0)).abs() <= 0.01);
+        // Step: a residual past 1e15 steps.
+        let step = Quant::Step { max_error: 0.01 };
+        let c = step.code(3e38, -3e38);
+        assert_eq!((c.raw, c.rec), (Some(3e38f32.to_bits()), 3e38));
+        assert_eq!(step.code(1e9, -1e7).raw, None);
+        // Lattice: a sample off the lattice.
+        let lat = Quant::Lattice {
+            offset: 0.0,
+            scale: 0.5,
+        };
+        let c = lat.code(0.3, 0.0);
+        assert_eq!((c.raw, c.rec), (Some(0.3f32.to_bits()), 0.3));
+        assert_eq!(lat.code(1.5, 0.0).raw, None);
+    }
+}
