@@ -1,15 +1,16 @@
 //! Pyramid build time per filter on the ETOPO5 DEM when present (else a
 //! procedural map of similar size); procedural generation, eager and as
-//! lazy tiles under a clipmap's first windows.
+//! lazy tiles under a clipmap's first windows. ETOPO5 is read from
+//! `target/etopo5_16.png`, where `docs/get-etopo5.sh target` writes it.
 use criterion::{criterion_group, criterion_main, Criterion};
 use terraclip::pyramid::{Filter, LazyBase, Pyramid};
 use terraclip::terrain::procedural::Procedural;
 use terraclip::terrain::Heightmap;
 
 fn bench(c: &mut Criterion) {
-    let etopo = std::path::Path::new("../shared/data/dem/etopo5_16.png");
+    let etopo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/etopo5_16.png");
     let map = if etopo.exists() {
-        Heightmap::load(etopo).unwrap()
+        Heightmap::load(&etopo).unwrap()
     } else {
         Procedural::new(1, 4320, 2161).generate().unwrap()
     };

@@ -12,10 +12,6 @@ use serde_json::Value;
 
 mod common;
 
-fn require_gpu() -> bool {
-    std::env::var("TERRACLIP_REQUIRE_GPU").is_ok_and(|v| v == "1")
-}
-
 /// The keys `docs/cli.md` lists per command: `## \`name\`` headings, then
 /// the first column of each table whose header is `JSON key`.
 fn documented() -> BTreeMap<String, BTreeSet<String>> {
@@ -137,6 +133,27 @@ fn json(args: &[&str]) -> Result<Value, String> {
     })
 }
 
+/// [`json`] of a run that may fail (`compare` exits non-zero on a
+/// mismatch): its JSON either way, so a failing run's keys are checked too.
+fn json_any(args: &[&str]) -> Result<Value, String> {
+    let out = bin()
+        .args(args)
+        .arg("--json")
+        .output()
+        .expect("run terraclip");
+    if out.status.code().is_none() {
+        return Err(format!("terraclip {}: killed by a signal", args.join(" ")));
+    }
+    serde_json::from_slice(&out.stdout).map_err(|e| {
+        format!(
+            "terraclip {}: stdout is not one JSON object ({e}): {}; {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
+
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("terraclip-cli-contract-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -216,6 +233,19 @@ fn every_json_key_is_in_docs_cli_md() {
         &one_frame,
     ])
     .unwrap();
+    // Another scene's frame at the same size: a comparison that fails, so
+    // the keys of a mismatch (`worst` and its fields) are printed.
+    let other = s(&tmp("other-frame"));
+    json(&[
+        "export",
+        "golden/wireframe.toml",
+        "--size",
+        "64x36",
+        "--out",
+        &other,
+    ])
+    .unwrap();
+    let (other_png, other_depth) = (format!("{other}/colour.png"), format!("{other}/depth.f32"));
     // Each command's runs: together they print every key the page lists.
     let runs: Vec<(&str, Vec<Vec<&str>>)> = vec![
         (
@@ -269,16 +299,42 @@ fn every_json_key_is_in_docs_cli_md() {
         ),
         (
             "compare",
-            vec![vec![
-                "compare",
-                &one_frame,
-                "--image",
-                &one_frame_png,
-                "--depth",
-                &one_frame_depth,
-                "--out",
-                &compare_out,
-            ]],
+            vec![
+                vec![
+                    "compare",
+                    &one_frame,
+                    "--image",
+                    &one_frame_png,
+                    "--depth",
+                    &one_frame_depth,
+                    "--out",
+                    &compare_out,
+                ],
+                // Failing runs, one per mode.
+                vec![
+                    "compare",
+                    &one_frame,
+                    "--image",
+                    &other_png,
+                    "--depth",
+                    &other_depth,
+                    "--mode",
+                    "exact",
+                ],
+                vec![
+                    "compare",
+                    &one_frame,
+                    "--image",
+                    &other_png,
+                    "--depth",
+                    &other_depth,
+                    "--mode",
+                    "tiered",
+                ],
+                vec![
+                    "compare", &one_frame, "--image", &other_png, "--mode", "flip",
+                ],
+            ],
         ),
         (
             "check-gpu",
@@ -434,9 +490,23 @@ fn every_json_key_is_in_docs_cli_md() {
         let mut keys = Keys::default();
         let mut skipped = false;
         for a in args {
-            match json(a) {
-                Ok(v) => keys.add(&v, ""),
-                Err(e) if matches!(*command, "check-gpu" | "bench") && !require_gpu() => {
+            let run = if *command == "compare" {
+                json_any
+            } else {
+                json
+            };
+            match run(a) {
+                Ok(v) => {
+                    // The other scene's frame must fail, in every mode.
+                    if a.contains(&other_png.as_str()) {
+                        assert_eq!(v["pass"], false, "{a:?}: {v}");
+                    }
+                    keys.add(&v, "")
+                }
+                Err(e)
+                    if matches!(*command, "check-gpu" | "bench")
+                        && common::skippable_gpu_failure(&e) =>
+                {
                     eprintln!("{command}: skipped, no GPU adapter ({})", e.trim());
                     skipped = true;
                 }
