@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::fuzz::{mutate, mutate_text, Rng};
+use common::fuzz::{edit_json, mutate, mutate_text, Rng};
 use common::packs::pack_once;
 use serde_json::Value;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -228,9 +228,12 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("upsampled pack", 0),
     ("export", 189),
     ("compare", 30),
-    ("merge cracks", 7),
-    ("merge fly", 13),
-    ("merge golden", 8),
+    ("merge cracks", 28),
+    ("merge fly", 19),
+    ("merge golden", 35),
+    ("merge tradeoff", 23),
+    ("merge check-gpu", 27),
+    ("merge export", 25),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -381,6 +384,7 @@ fn merge_seeds(d: &Path) -> Vec<(&'static str, [Part; 2])> {
         [0, 1].map(|i| {
             let sh = shard::Shard { index: i, count: 2 };
             let mut v = shard::tag(f(sh), "sweep", sh, "seed");
+            steady(&mut v);
             let tag = v.as_object_mut().unwrap().remove("shard").unwrap();
             [&tag, &v].map(|v| serde_json::to_string_pretty(v).unwrap())
         })
@@ -400,35 +404,142 @@ fn merge_seeds(d: &Path) -> Vec<(&'static str, [Part; 2])> {
             .collect();
         serde_json::json!({ "adapter": "cpu", "scenes": scenes })
     });
-    let mut seeds = vec![("cracks", survey), ("fly", flight), ("golden", golden)];
+    let tradeoff = parts(&|shard| {
+        let o = terraclip::studies::tradeoff::Options {
+            size: [32, 18],
+            path_frames: 2,
+            quick: true,
+            shard,
+        };
+        let r = terraclip::studies::tradeoff::run(&scene, &o, |_| {}).unwrap();
+        serde_json::to_value(r).unwrap()
+    });
+    let check_gpu = parts(&|sh| {
+        let scenes: Vec<Value> = (0..3)
+            .filter(|k| sh.owns(*k))
+            .map(|k| {
+                serde_json::json!({ "scene": format!("s{k}"), "pass": true, "frames": 1,
+                    "colour_px_differ": k, "depth_px_differ": 0, "unmatched_example": null })
+            })
+            .collect();
+        serde_json::json!({ "adapter": "llvmpipe", "mode": "exact", "exact_expected": true, "scenes": scenes })
+    });
+    // An export's parts are folders: two real ones, written by the CLI.
+    let scene_file = d.join("merge-seed.toml");
+    std::fs::write(&scene_file, SCENE).unwrap();
+    let export = [0, 1].map(|i| {
+        let out = d.join(format!("export-part{i}"));
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .arg("export")
+            .arg(&scene_file)
+            .args([
+                "--frames",
+                "2",
+                "--shard",
+                &format!("{i}/2"),
+                "--json",
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let mut v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let tag = v.as_object_mut().unwrap().remove("shard").unwrap();
+        let tag = serde_json::to_string_pretty(&tag)
+            .unwrap()
+            .replace("\"export\"", "\"sweep\"");
+        [tag, serde_json::to_string_pretty(&v).unwrap()]
+    });
+    let mut seeds = vec![
+        ("cracks", survey),
+        ("fly", flight),
+        ("golden", golden),
+        ("tradeoff", tradeoff),
+        ("check-gpu", check_gpu),
+        ("export", export),
+    ];
     for (kind, parts) in &mut seeds {
         for [tag, _] in parts.iter_mut() {
             *tag = tag.replace("\"sweep\"", &format!("\"{kind}\""));
         }
+        let dir = (*kind == "export").then(|| d.join("export-joined"));
         assert_eq!(
-            merge_once(&parts.clone().map(|p| part_text(&p)), None),
-            Ok(true),
+            merge_once(&parts.clone().map(|p| part_text(&p)), dir.as_deref()),
+            (true, Ok(true)),
             "the {kind} seed"
         );
     }
     seeds
 }
 
-/// `merge` of two part files, one of them damaged: Ok(true) merged (into
-/// an object, never a null standing for parts it dropped), Ok(false) an
-/// error naming a part file or the parts, Err on a panic or an error that
-/// names neither.
-fn merge_once(texts: &[String; 2], dir: Option<&Path>) -> Result<bool, String> {
+/// Timings set to 1, and what a part works out from them cleared: a
+/// run's timings differ from run to run, and the damage drawn for a part
+/// depends on its text, so the seeded run's counts are reproducible only
+/// without them.
+fn steady(v: &mut Value) {
+    match v {
+        Value::Object(o) => {
+            for (k, v) in o.iter_mut() {
+                let timing = k.starts_with("ms")
+                    || ["ms", "_s", "seconds", "fps", "rss_bytes"]
+                        .iter()
+                        .any(|t| k.ends_with(t));
+                // What a tradeoff part works out from its timings (merge
+                // works it out again over the joined rows).
+                match k.as_str() {
+                    "pareto" => *v = serde_json::json!(false),
+                    "best_in_budget" => *v = Value::Null,
+                    _ => {}
+                }
+                let one = |x: &mut Value| {
+                    if x.is_u64() {
+                        *x = serde_json::json!(1);
+                    } else if x.is_number() {
+                        *x = serde_json::json!(1.0);
+                    }
+                };
+                if timing && v.is_array() {
+                    v.as_array_mut().unwrap().iter_mut().for_each(one);
+                } else if timing {
+                    one(v);
+                } else {
+                    steady(v);
+                }
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(steady),
+        _ => {}
+    }
+}
+
+/// `merge` of two part files, one of them damaged: whether the parts
+/// parsed as JSON and so reached `merge`, and Ok(true) merged (into an
+/// object, never a null standing for parts it dropped), Ok(false) an error
+/// naming a part file or the parts, Err on a panic or an error that names
+/// neither. `dir` is emptied first (an export's parts are joined there).
+fn merge_once(texts: &[String; 2], dir: Option<&Path>) -> (bool, Result<bool, String>) {
     let mut parts = vec![];
     for (i, t) in texts.iter().enumerate() {
         match serde_json::from_str::<Value>(t) {
             Ok(v) => parts.push((format!("part{i}.json"), v)),
             // The CLI's own parse error, which names the file (tests/shard.rs).
-            Err(_) => return Ok(false),
+            Err(_) => return (false, Ok(false)),
         }
     }
+    if let Some(dir) = dir {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    (true, merge_result(texts, &parts, dir))
+}
+
+fn merge_result(
+    texts: &[String; 2],
+    parts: &[(String, Value)],
+    dir: Option<&Path>,
+) -> Result<bool, String> {
     match catch_unwind(AssertUnwindSafe(|| {
-        terraclip::studies::shard::merge(&parts, dir)
+        terraclip::studies::shard::merge(parts, dir)
     })) {
         Err(_) => Err(format!("merge panicked on {texts:?}")),
         // A crack survey's merge sums every part's views: none dropped.
@@ -449,6 +560,44 @@ fn merge_once(texts: &[String; 2], dir: Option<&Path>) -> Result<bool, String> {
                 Err(format!("merge error names no part: {msg}"))
             }
         }
+    }
+}
+
+/// Cases per kind of merge whose parts both parse as JSON (of 200 each:
+/// a third are edited as a tree, which keeps the JSON whole).
+const EXPECTED_MERGED: &[(&str, usize)] = &[
+    ("cracks", 78),
+    ("fly", 66),
+    ("golden", 68),
+    ("tradeoff", 72),
+    ("check-gpu", 72),
+    ("export", 101),
+];
+
+/// `terraclip merge` of the two parts written to files: an exit with a
+/// code, never a signal, and a failure that names a part or the parts.
+fn merge_through_cli(d: &Path, texts: &[String; 2], dir: Option<&Path>) -> Result<(), String> {
+    let files = [0, 1].map(|i| d.join(format!("cli-part{i}.json")));
+    for (f, t) in files.iter().zip(texts) {
+        std::fs::write(f, t).unwrap();
+    }
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"));
+    c.arg("merge").args(&files).arg("--json");
+    if let Some(dir) = dir {
+        let _ = std::fs::remove_dir_all(dir);
+        c.arg("--dir").arg(dir);
+    }
+    let out = c.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    match out.status.code() {
+        None => Err(format!("killed by a signal: {:?}", out.status)),
+        Some(0) => Ok(()),
+        Some(_)
+            if (err.contains("cli-part") || err.contains("parts")) && !err.contains("panicked") =>
+        {
+            Ok(())
+        }
+        Some(c) => Err(format!("exit {c}: {err}")),
     }
 }
 
@@ -638,26 +787,48 @@ fn ten_thousand_malformed_inputs_never_panic() {
         record("compare", compare_once(&seed, &theirs, Some(depth), named));
         cases += 1;
     }
-    // `merge`'s part files (600: one of two parts of a crack survey, a
-    // flight or a golden run cut, flipped or edited; a flight's merge
-    // every tenth case also draws its charts).
+    // `merge`'s part files (1,200: one of two parts of a crack survey, a
+    // flight, a golden run, a tradeoff sweep, a check-gpu run or an export
+    // cut, flipped or edited; a flight's merge every tenth case also draws
+    // its charts, an export's joins its folders). Every tenth case also
+    // goes through `terraclip merge`.
     let mut merge_rng = Rng(0x3E26_E5EE_D000_0001);
     let charts = d.join("merge-charts");
+    let joined = d.join("export-joined");
+    let mut reached: Vec<(&str, usize)> = vec![];
+    let (mut merge_cli, mut cli_failures) = (0, vec![]);
     for (kind, good) in merge_seeds(&d) {
+        reached.push((kind, 0));
         for i in 0..200 {
             let mut parts = good.clone();
             let (k, half) = (merge_rng.below(2), merge_rng.below(2));
             let text = &good[k][half];
-            parts[k][half] = if merge_rng.below(3) == 0 {
-                String::from_utf8_lossy(&mutate(&mut merge_rng, text.as_bytes())).into_owned()
-            } else {
-                mutate_text(&mut merge_rng, text)
+            parts[k][half] = match merge_rng.below(3) {
+                0 => String::from_utf8_lossy(&mutate(&mut merge_rng, text.as_bytes())).into_owned(),
+                1 => mutate_text(&mut merge_rng, text),
+                // Edited as a tree, so the JSON still parses and `merge`
+                // itself meets the damage.
+                _ => {
+                    let mut v: Value = serde_json::from_str(text).unwrap();
+                    edit_json(&mut merge_rng, &mut v);
+                    serde_json::to_string_pretty(&v).unwrap()
+                }
             };
-            let dir = (kind == "fly" && i % 10 == 0).then_some(charts.as_path());
-            record(
-                &format!("merge {kind}"),
-                merge_once(&parts.map(|p| part_text(&p)), dir),
-            );
+            let dir = match kind {
+                "fly" if i % 10 == 0 => Some(charts.as_path()),
+                "export" => Some(joined.as_path()),
+                _ => None,
+            };
+            let texts = parts.map(|p| part_text(&p));
+            let (merged, r) = merge_once(&texts, dir);
+            reached.last_mut().unwrap().1 += usize::from(merged);
+            record(&format!("merge {kind}"), r);
+            if i % 10 == 0 {
+                merge_cli += 1;
+                if let Err(e) = merge_through_cli(&d, &texts, dir) {
+                    cli_failures.push(format!("merge {kind} case {i}: {e}"));
+                }
+            }
             cases += 1;
         }
     }
@@ -690,12 +861,17 @@ fn ten_thousand_malformed_inputs_never_panic() {
     assert!(cases >= 10_000, "{cases} cases");
     assert!(
         failures.is_empty(),
-        "{} failures, first: {}",
+        "{} failures: {:#?}",
         failures.len(),
-        failures[0]
+        failures
     );
     // The seeded run is reproducible, so its split is exact: a reader that
     // starts accepting what it used to reject, or the reverse, changes it.
     let got: Vec<(&str, usize)> = split.iter().map(|k| (k.0.as_str(), k.2)).collect();
     assert_eq!(got, EXPECTED_LOADED, "loaded cases per kind");
+    // Cases whose parts both parse, so that `merge` itself meets the damage.
+    println!("merge reached: {reached:?}");
+    assert_eq!(reached, EXPECTED_MERGED, "cases reaching merge per kind");
+    assert_eq!(merge_cli, 6 * 20);
+    assert!(cli_failures.is_empty(), "{cli_failures:?}");
 }

@@ -20,9 +20,9 @@
 
 mod common;
 
-use common::fuzz::{mutate, mutate_text, Rng};
+use common::fuzz::{edit_json, mutate, mutate_text, Rng};
 use common::packs::{pack_once, Parts};
-use serde_json::{json, Value};
+
 use std::panic::catch_unwind;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -81,127 +81,6 @@ fn seeds(d: &Path) -> Vec<(&'static str, Parts)> {
         ("bits", pack(d, &map, 0.0, Predictor::Lifting)),
         ("no-data", pack(d, &holes, 0.5, Predictor::Lifting)),
     ]
-}
-
-/// One edit of a JSON tree: a node chosen at random is changed for
-/// another number, another string, fewer or more elements, a key removed
-/// or unknown, or wrapped in an array or object.
-fn edit_json(rng: &mut Rng, v: &mut Value) {
-    let mut nodes = 0;
-    count(v, &mut nodes);
-    let target = rng.below(nodes);
-    let mut at = 0;
-    edit_at(rng, v, target, &mut at);
-}
-
-fn count(v: &Value, n: &mut usize) {
-    *n += 1;
-    match v {
-        Value::Array(a) => a.iter().for_each(|v| count(v, n)),
-        Value::Object(o) => o.values().for_each(|v| count(v, n)),
-        _ => {}
-    }
-}
-
-fn edit_at(rng: &mut Rng, v: &mut Value, target: usize, at: &mut usize) -> bool {
-    if *at == target {
-        edit_node(rng, v);
-        return true;
-    }
-    *at += 1;
-    match v {
-        Value::Array(a) => a.iter_mut().any(|v| edit_at(rng, v, target, at)),
-        Value::Object(o) => o.values_mut().any(|v| edit_at(rng, v, target, at)),
-        _ => false,
-    }
-}
-
-fn edit_node(rng: &mut Rng, v: &mut Value) {
-    // Wrapping in another level of nesting, any node.
-    if rng.below(12) == 0 {
-        *v = if rng.below(2) == 0 {
-            json!([v.clone()])
-        } else {
-            json!({ "v": v.clone() })
-        };
-        return;
-    }
-    match v {
-        Value::Number(n) => {
-            let x = n.as_f64().unwrap();
-            let swaps = [
-                0.0,
-                -1.0,
-                1.0,
-                2.0,
-                3.0,
-                1e12,
-                4294967297.0,
-                1.8e19,
-                -1e-30,
-                1e39,
-                3.4e38,
-                x * 2.0,
-                x + 1.0,
-                x - 1.0,
-                x / 2.0,
-                x + 0.25,
-                x * 0.999,
-            ];
-            let y = swaps[rng.below(swaps.len())];
-            *v = if y.fract() == 0.0 && y.abs() < 1e15 && n.is_u64() && y >= 0.0 {
-                json!(y as u64)
-            } else {
-                json!(y)
-            };
-        }
-        Value::String(_) => {
-            let s = [
-                "",
-                "x",
-                "sinc-blackman:3",
-                "box",
-                "lanczos:3",
-                "sinc-blackman:11",
-            ];
-            *v = match rng.below(4) {
-                0 => json!(1),
-                _ => json!(s[rng.below(s.len())]),
-            };
-        }
-        Value::Array(a) => match rng.below(4) {
-            0 if !a.is_empty() => {
-                a.remove(rng.below(a.len()));
-            }
-            1 if !a.is_empty() => {
-                let e = a[rng.below(a.len())].clone();
-                a.insert(rng.below(a.len() + 1), e);
-            }
-            2 if a.len() >= 2 => {
-                let (i, j) = (rng.below(a.len()), rng.below(a.len()));
-                a.swap(i, j);
-            }
-            _ => a.push(json!(0)),
-        },
-        Value::Object(o) => {
-            let keys: Vec<String> = o.keys().cloned().collect();
-            match rng.below(3) {
-                0 if !keys.is_empty() => {
-                    o.remove(&keys[rng.below(keys.len())]);
-                }
-                1 if !keys.is_empty() => {
-                    let k = &keys[rng.below(keys.len())];
-                    let val = o.remove(k).unwrap();
-                    o.insert(format!("{k}_"), val);
-                }
-                _ => {
-                    o.insert("extra".into(), json!(1));
-                }
-            }
-        }
-        Value::Bool(b) => *b = !*b,
-        Value::Null => *v = json!(0),
-    }
 }
 
 /// One damaged case of `seed`.

@@ -1020,15 +1020,17 @@ fn written(
 }
 
 /// Joins the folders the parts of a sharded export wrote (`parts`, their
-/// JSON in part order) into the export one run writes, at `dir`. Every
-/// file is checked against its part's manifest first.
-pub fn join(parts: &[Written], dir: &Path) -> Result<Written> {
+/// JSON in part order, read from the files `names`) into the export one
+/// run writes, at `dir`. Every file is checked against its part's manifest
+/// first; where a folder disagrees with its part's JSON, the error names
+/// both.
+pub fn join(parts: &[Written], names: &[&str], dir: &Path) -> Result<Written> {
     let first = parts
         .first()
         .ok_or_else(|| Error::value("merge", "no parts"))?;
     let (mut all, mut folders, mut frames): (Files, Vec<String>, Vec<FrameSummary>) =
         (vec![], vec![], vec![]);
-    for p in parts {
+    for (p, name) in parts.iter().zip(names) {
         if p.scene != first.scene {
             return Err(Error::file(
                 &p.dir,
@@ -1044,7 +1046,7 @@ pub fn join(parts: &[Written], dir: &Path) -> Result<Written> {
             return Err(Error::file(
                 p.dir.join("manifest.json"),
                 format!(
-                    "frames {:?}, where the part's JSON says {listed:?}",
+                    "frames {:?}, where the part's JSON ({name}) says {listed:?}",
                     m.frames
                 ),
             ));

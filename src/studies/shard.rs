@@ -178,7 +178,23 @@ pub fn merge(parts: &[(String, Value)], dir: Option<&Path>) -> Result<Value> {
             }
             to_value(&r)
         }
-        ("export", Some(dir)) => to_value(&crate::export::join(&typed(&values, &names)?, dir)?),
+        ("export", Some(dir)) => {
+            let written: Vec<crate::export::Written> = typed(&values, &names)?;
+            // The folder a part names is read from the part's file: where
+            // it is not a folder, the part file is what is wrong.
+            for (w, name) in written.iter().zip(&names) {
+                if !w.dir.is_dir() {
+                    return Err(bad(
+                        name,
+                        format!(
+                            "dir '{}' is not a folder (the folder this part wrote)",
+                            w.dir.display()
+                        ),
+                    ));
+                }
+            }
+            to_value(&crate::export::join(&written, &names, dir)?)
+        }
         ("export", None) => Err(bad(
             "--dir",
             "an export's parts are folders: name the folder to join them into",
