@@ -758,40 +758,106 @@ fn a_damaged_tile_met_by_a_render_is_an_error_naming_it() {
     assert!(e.contains("level 8 tile (0, 0): checksum mismatch"), "{e}");
 }
 
-/// Any window of any level decoded from the mapped pack alone (its tiles
-/// and the coarser ones they are predicted from, nothing else) has the
-/// bits of the whole decode there.
+/// Any window of any level decoded from the mapped pack alone has the
+/// bits of the whole decode there, for each predictor; and it decodes
+/// exactly the tiles it needs: its own tiles on level l, then on each
+/// coarser level the tiles that meet what the level's needed tiles are
+/// predicted from (the predictors' stencils' reach, worked out here
+/// apart from the reader's own), nothing more. `unpack --level L --window X,Y,W,H` writes those samples: a
+/// window wider than tall, so a reader that swapped x and y fails.
 #[test]
 fn a_window_decoded_alone_equals_the_whole_decode() {
+    use std::collections::BTreeSet;
     use std::sync::Arc;
     use terraclip::pack::{file, reader::PackReader};
     let (map, lattice) = jacksboro();
-    let (packed, _) = Packed::encode(&levels_of(&map), 0.5, 32, Some(lattice));
-    let path = tmp("window.tcz");
-    file::write(&path, &packed, map.cell_size, "sinc-blackman:11", "j").unwrap();
-    let whole = packed.decode().unwrap();
-    for (l, rect) in [
-        (0, [0i64, 0, 402, 343]),
-        (0, [150, 77, 151, 77]),
-        (0, [31, 31, 32, 32]),
-        (1, [60, 10, 140, 171]),
-        (3, [0, 0, 0, 0]),
-        (8, [0, 0, 1, 1]),
-    ] {
-        let reader = PackReader::open(&path).unwrap();
-        let mut p = Pyramid::decoded(Arc::new(reader), Filter::default(), 1).unwrap();
-        p.decode_window(l, rect).unwrap();
-        common::same_window(&p.levels[l], &whole[l], l, rect);
-        // Only what the window needed: its own tiles on level l.
-        let tiles = p.lazy_stats().unwrap().tiles_built;
-        let own = ((rect[2] / 32 - rect[0] / 32 + 1) * (rect[3] / 32 - rect[1] / 32 + 1)) as u64;
-        let below: u64 = (l + 1..whole.len())
-            .map(|k| (whole[k].width.div_ceil(32) * whole[k].height.div_ceil(32)) as u64)
-            .sum();
-        assert!(
-            tiles >= own && tiles <= own + below,
-            "level {l}: {tiles} tiles"
-        );
+    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+        let (packed, _) = Packed::encode_with(&levels_of(&map), 0.5, 32, Some(lattice), predictor);
+        let path = tmp(&format!("window-{}.tcz", predictor.name()));
+        file::write(&path, &packed, map.cell_size, "sinc-blackman:11", "j").unwrap();
+        let whole = packed.decode().unwrap();
+        // Tiles of level `k` meeting `[x0, y0, x1, y1]` (inclusive).
+        let meeting = |k: usize, [x0, y0, x1, y1]: [i64; 4]| {
+            let (nx, ny) = (
+                whole[k].width.div_ceil(32) as i64,
+                whole[k].height.div_ceil(32) as i64,
+            );
+            let mut out = BTreeSet::new();
+            for ty in (y0.max(0) / 32)..=(y1 / 32).min(ny - 1) {
+                for tx in (x0.max(0) / 32)..=(x1 / 32).min(nx - 1) {
+                    out.insert([tx as usize, ty as usize]);
+                }
+            }
+            out
+        };
+        for (l, rect) in [
+            (0, [0i64, 0, 402, 343]),
+            (0, [150, 77, 151, 77]),
+            (0, [31, 31, 32, 32]),
+            (1, [60, 10, 140, 171]),
+            (3, [0, 0, 0, 0]),
+            (8, [0, 0, 1, 1]),
+        ] {
+            let mut need = meeting(l, rect);
+            let mut want = need.len() as u64;
+            for k in l..whole.len() - 1 {
+                let mut coarser = BTreeSet::new();
+                for &[tx, ty] in &need {
+                    // The stencils' reach: fine samples a..=b read coarse
+                    // a/2 - 1 ..= b/2 + 1 lifting, ..= b/2 + 2 upsampling
+                    // (the four-point stencil), clamped to the level.
+                    let after = if predictor == Predictor::Upsampled {
+                        2
+                    } else {
+                        1
+                    };
+                    let reach = |t: usize, n: usize, cn: usize| {
+                        let (a, b) = (t * 32, ((t + 1) * 32).min(n) - 1);
+                        (
+                            ((a / 2) as i64 - 1).max(0),
+                            ((b / 2 + after) as i64).min(cn as i64 - 1),
+                        )
+                    };
+                    let (x0, x1) = reach(tx, whole[k].width, whole[k + 1].width);
+                    let (y0, y1) = reach(ty, whole[k].height, whole[k + 1].height);
+                    coarser.extend(meeting(k + 1, [x0, y0, x1, y1]));
+                }
+                want += coarser.len() as u64;
+                need = coarser;
+            }
+            let r = PackReader::open(&path).unwrap();
+            let mut p = Pyramid::decoded(Arc::new(r), Filter::default(), 1).unwrap();
+            p.decode_window(l, rect).unwrap();
+            common::same_window(&p.levels[l], &whole[l], l, rect);
+            let tiles = p.lazy_stats().unwrap().tiles_built;
+            assert_eq!(
+                tiles, want,
+                "{predictor:?} level {l} {rect:?}: tiles decoded"
+            );
+        }
+        // unpack: level 1, a 40 × 23 window at (5, 17), against the whole
+        // decode sample by sample.
+        let out = tmp(&format!("window-{}.f32", predictor.name()));
+        let st = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .arg("unpack")
+            .arg(&path)
+            .args(["--level", "1", "--window", "5,17,40,23", "-o"])
+            .arg(&out)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let got = Heightmap::load(&out).unwrap();
+        assert_eq!((got.width(), got.height()), (40, 23));
+        for y in 0..23 {
+            for x in 0..40 {
+                let w = whole[1].data[(17 + y) * whole[1].width + 5 + x];
+                assert_eq!(
+                    got.get(x, y).to_bits(),
+                    w.to_bits(),
+                    "{predictor:?} ({x}, {y})"
+                );
+            }
+        }
     }
 }
 
