@@ -267,6 +267,50 @@ fn the_files_hold_what_the_manifest_says() {
         [e.camera.width, e.camera.height],
         [scene.image.width, scene.image.height]
     );
+    // Every field of camera.json against the scene's camera, worked out
+    // here: the camera as the scene gives it, the viewport the whole
+    // image, the floating origin the base-grid vertex the frame is drawn
+    // relative to (the map's north-west corner at the terrain's origin,
+    // the sidecar's cells), and the matrices of the camera moved to it.
+    let cam = scene.camera();
+    let c = &e.camera;
+    assert_eq!(
+        (c.eye, c.target),
+        (cam.eye.to_array(), cam.target.to_array())
+    );
+    assert_eq!(
+        [c.fov_y_deg, c.aspect, c.near, c.far],
+        [50.0, 400.0 / 240.0, 10.0, 80000.0]
+    );
+    assert_eq!(
+        [c.fov_y_deg, c.aspect, c.near, c.far],
+        [cam.fov_y_deg, cam.aspect, cam.near, cam.far]
+    );
+    assert_eq!(c.viewport, [0, 0, 400, 240]);
+    let cell = terraclip::terrain::Heightmap::load(Path::new("tests/data/jacksboro_16.png"))
+        .unwrap()
+        .cell_size;
+    let [gx, gy] = c.floating_origin_grid;
+    let origin = scene.terrain.origin;
+    let fo = glam::DVec3::new(
+        origin[0] + gx as f64 * cell[0],
+        origin[1] - gy as f64 * cell[1],
+        0.0,
+    );
+    assert_eq!(c.floating_origin, fo.to_array());
+    // The origin is a vertex near the eye (within a cell of it).
+    assert!(
+        (cam.eye.x - fo.x).abs() <= cell[0] && (cam.eye.y - fo.y).abs() <= cell[1],
+        "{fo}"
+    );
+    assert_eq!(c.eye_relative, (cam.eye - fo).as_vec3().to_array());
+    let rel = terraclip::scene::camera::Camera {
+        eye: cam.eye - fo,
+        target: cam.target - fo,
+        ..cam
+    };
+    assert_eq!(c.view, rel.view().to_cols_array_2d());
+    assert_eq!(c.projection, rel.projection().to_cols_array_2d());
     // The f64 matrices agree with the f32 one they were rounded into.
     let vp = glam::DMat4::from_cols_array_2d(&e.camera.projection)
         * glam::DMat4::from_cols_array_2d(&e.camera.view);
