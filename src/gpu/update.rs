@@ -245,16 +245,15 @@ impl UpdatePass {
         else {
             return false;
         };
-        let (n, g) = (cm.n(), slopes as i64);
         let (fine, coarse) = (&p.levels[l], &p.levels[l + 1]);
         let sizes = [[fine.width, coarse.width], [fine.height, coarse.height]];
-        (0..2).all(|a| {
-            let [fw, cw] = sizes[a].map(|v| v as i64);
-            let lo = (o[a] - g).clamp(0, fw - 1) / 2 - 1;
-            let hi = (o[a] + n - 1 + g).clamp(0, fw - 1) / 2 + 2;
-            let (lo, hi) = (lo.clamp(0, cw - 1), hi.clamp(0, cw - 1));
-            lo >= oc[a] && hi < oc[a] + n
-        })
+        window_reads_inside(
+            o,
+            oc,
+            cm.n(),
+            slopes as i64,
+            sizes.map(|s| s.map(|v| v as i64)),
+        )
     }
 
     /// Fills each of `jobs` (a level [`UpdatePass::levels`] names and its
@@ -422,9 +421,52 @@ impl UpdatePass {
     }
 }
 
+/// Whether a fine window at `o` (`n` texels a side, grown by `g` for
+/// slopes), on a level `sizes[a][0]` texels along axis a, reads only
+/// coarse samples (the four-point stencil: j − 1 ..= j + 2 of the halved
+/// index, clamped to the coarser level of `sizes[a][1]`) inside the
+/// coarse window at `oc`.
+fn window_reads_inside(o: [i64; 2], oc: [i64; 2], n: i64, g: i64, sizes: [[i64; 2]; 2]) -> bool {
+    (0..2).all(|a| {
+        let [fw, cw] = sizes[a];
+        let lo = (o[a] - g).clamp(0, fw - 1) / 2 - 1;
+        let hi = (o[a] + n - 1 + g).clamp(0, fw - 1) / 2 + 2;
+        let (lo, hi) = (lo.clamp(0, cw - 1), hi.clamp(0, cw - 1));
+        lo >= oc[a] && hi < oc[a] + n
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// n = 15 on a 100-texel level over a 50-texel one: a window at 20
+    /// reads coarse 9 ..= 19 (one more each side with slopes).
+    #[test]
+    fn a_window_is_covered_only_where_the_coarser_window_holds_its_reads() {
+        let sizes = [[100, 50]; 2];
+        let at = |o: i64, oc: i64, g: i64| window_reads_inside([o, 20], [oc, 5], 15, g, sizes);
+        // The coarse window 5 ..= 19 holds 9 ..= 19 exactly; 4 ..= 18
+        // (one texel off) misses 19, 10 ..= 24 misses 9.
+        assert!(at(20, 5, 0));
+        assert!(!at(20, 4, 0));
+        assert!(!at(20, 10, 0));
+        // A window at 21 reads coarse 9 ..= 19; with slopes (20 ..= 36)
+        // 9 ..= 20, which the coarse window 5 ..= 19 no longer holds.
+        assert!(at(21, 5, 0));
+        assert!(!at(21, 5, 1));
+        assert!(at(21, 6, 1));
+        // Along the other axis too.
+        assert!(!window_reads_inside([20, 20], [5, 4], 15, 0, sizes));
+        // At the map's edge the reads are clamped to the level: a window
+        // hanging 5 texels off the west edge reads coarse 0 ..= 6, which a
+        // coarse window at 0 holds and one at 1 does not.
+        assert!(window_reads_inside([-5, 20], [0, 5], 15, 0, sizes));
+        assert!(!window_reads_inside([-5, 20], [1, 5], 15, 0, sizes));
+        // And the east edge: fine 90 ..= 104 clamps to 99, coarse 44 ..= 49.
+        assert!(window_reads_inside([90, 20], [35, 5], 15, 0, sizes));
+        assert!(!window_reads_inside([90, 20], [34, 5], 15, 0, sizes));
+    }
 
     /// What the shader reads at box sample `i`: its code's sum, or its
     /// escape's bits found by a binary search.
