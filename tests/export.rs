@@ -327,8 +327,23 @@ fn the_files_hold_what_the_manifest_says() {
         .unwrap();
     let pyr = session.pyramid();
     assert!(!e.info.toroids.is_empty());
+    // Every active level is checked: frame.json's drawn levels, each with
+    // a toroid that holds texels.
+    let active: Vec<usize> = e
+        .info
+        .toroids
+        .iter()
+        .filter(|t| t.active)
+        .map(|t| t.level)
+        .collect();
+    let drawn: Vec<usize> = e.info.levels.iter().map(|l| l.level).collect();
+    assert_eq!(active, drawn, "active toroids against drawn levels");
+    let mut levels_checked = vec![];
     for (t, data) in e.info.toroids.iter().zip(&e.toroids) {
-        let Some([ox, oy]) = t.origin else { continue };
+        let Some([ox, oy]) = t.origin else {
+            assert!(!t.active, "level {}: active without a window", t.level);
+            continue;
+        };
         let lv = &pyr.levels[t.level];
         let n = t.size as i64;
         let mut checked = 0;
@@ -346,7 +361,11 @@ fn the_files_hold_what_the_manifest_says() {
             }
         }
         assert!(checked > 0, "level {}", t.level);
+        if t.active {
+            levels_checked.push(t.level);
+        }
     }
+    assert_eq!(levels_checked, drawn, "levels whose toroid was checked");
 }
 
 /// `golden --export`: a folder per scene that `compare` reads, a README,
