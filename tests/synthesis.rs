@@ -87,6 +87,9 @@ fn tiles_made_in_any_order_are_the_whole_levels_bits() {
     for (drawn, x0, dx) in [(5, 290, 5), (1, 290, 5), (1, 500, -5)] {
         let (mut tiled, _) = refine(base(129, 4), &spec(2), Path::new("test"), 10_000).unwrap();
         let (mut evicted, mut waited, mut made) = (0, 0, 0);
+        // Checks per level: every drawn level, the two synthesised ones
+        // among them, must be checked somewhere along the walk.
+        let mut checks = vec![0usize; drawn];
         for step in 0..40i64 {
             // Level l's window: 63 texels wide, centred on a point moving
             // diagonally across the finest level.
@@ -115,8 +118,13 @@ fn tiles_made_in_any_order_are_the_whole_levels_bits() {
                     bits(&tiled.levels[l], tiles) == bits(&whole.levels[l], tiles),
                     "{drawn} windows, step {step}, level {l}"
                 );
+                checks[l] += 1;
             }
         }
+        assert!(
+            checks.iter().all(|&c| c > 0),
+            "{drawn} windows: checks per level {checks:?}"
+        );
         assert!(evicted > 0 && made > 20, "{evicted} {made}");
         assert!(drawn == 1 || waited > 0, "{waited}");
     }
