@@ -329,3 +329,68 @@ fn peak_memory_is_under_twice_the_map_and_pyramid() {
     assert!(peak >= pyramid, "the pyramid is alive at the peak");
     assert!(m["ratio"].as_f64().unwrap() < 2.0, "{m}");
 }
+
+/// Peak resident memory of a streaming pack, in a process of its own:
+/// what a band holds times the bands resident at once, over the same
+/// command's peak on a 65² map (the program, its threads and buffers that
+/// do not grow with the map). The bound: a band of the level being coded,
+/// its reconstruction, the band of the coarser level it is predicted from
+/// and the band being read (4 bands), and one pyramid block's scratch per
+/// worker (about 2.5 MB each, `stream::BLOCK`), on 2 workers. A 2049²
+/// map (21 MB of samples) at 1 and 2 MiB bands is cut into 20 and 10
+/// bands. Measured 2026-12-04 in a debug build on 2 workers: 10.6 MiB
+/// for 65², 16.2 MiB at 1 MiB bands (bound 19.4), 19.8 at 2 (bound 23.4).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("pack-rss");
+    std::fs::create_dir_all(&dir).unwrap();
+    let default = include_str!("../src/scene/default.toml");
+    let peak = |side: usize, band_mib: u32| -> f64 {
+        let scene = dir.join(format!("p{side}.toml"));
+        let text = default.replace(
+            "width = 1025, height = 1025",
+            &format!("width = {side}, height = {side}"),
+        );
+        assert_ne!(text, default);
+        std::fs::write(&scene, text).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .env("RAYON_NUM_THREADS", "2")
+            .arg("pack")
+            .arg(&scene)
+            .arg("-o")
+            .arg(dir.join(format!("p{side}.tcz")))
+            .args([
+                "--max-error",
+                "1",
+                "--band-mib",
+                &band_mib.to_string(),
+                "--json",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["peak_rss_bytes"].as_f64().unwrap()
+    };
+    let base = peak(65, 1);
+    let mib = (1u64 << 20) as f64;
+    for band in [1u32, 2] {
+        let p = peak(2049, band);
+        let bound = base + 4.0 * band as f64 * mib + 2.0 * 2.5e6;
+        println!(
+            "band {band} MiB: peak {:.1} MiB, base {:.1}, bound {:.1}",
+            p / mib,
+            base / mib,
+            bound / mib
+        );
+        assert!(p <= bound, "band {band} MiB: peak {p} B over {bound} B");
+        // A reading that broke and gave a small number fails too: a band
+        // at least is resident above the small map's peak.
+        assert!(p >= base + band as f64 * mib, "band {band} MiB: peak {p} B");
+    }
+}

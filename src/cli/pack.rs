@@ -32,6 +32,11 @@ pub struct Args {
     /// Tile side in samples (even, 2..=4096).
     #[arg(long, default_value_t = 128)]
     pub tile: usize,
+    /// About the bytes of samples (heights and flags) one band of rows
+    /// holds, in MiB: what is resident while packing is a few bands, so
+    /// this bounds the memory a pack of any size takes (default 48).
+    #[arg(long, default_value_t = 48.0)]
+    pub band_mib: f64,
     #[arg(long)]
     pub json: bool,
 }
@@ -65,12 +70,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "--predictor upsampled needs --max-error > 0: its f32 sums p + q·s cannot rebuild every map bit for bit (a lossless pack uses lifting)"
         );
     }
+    if !(a.band_mib.is_finite() && (0.0625..=65536.0).contains(&a.band_mib)) {
+        anyhow::bail!(
+            "--band-mib must be within 0.0625..=65536, got {}",
+            a.band_mib
+        );
+    }
     let t = Instant::now();
     let src = source(&a.input)?;
     let [w, h] = src.size();
     let source_name = a.input.display().to_string();
     let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
     opts.predictor = a.predictor;
+    opts.band_bytes = (a.band_mib * (1 << 20) as f64) as usize;
     let bar = super::progress(0, "pack");
     let summary = stream::pack(src.as_ref(), &a.out, &opts, &mut |done, total| {
         bar.set_length(total);
