@@ -1035,3 +1035,83 @@ fn extreme_heights_and_spikes_keep_the_bound_and_come_back_exact() {
         }
     }
 }
+
+/// Eviction gives pages back: a window decoded at the west end of a
+/// 4097-wide level, then moved 3,000 samples east, leaves the tiles it
+/// left behind evicted, and the whole pages of their rows are no longer
+/// resident (`mincore`) and read as zeros, the documented stand-in until
+/// they are decoded again; decoded again, they are the whole decode's
+/// bits. A row is 16 KiB, so each of the 64 rows under the window holds
+/// whole 4 KiB pages inside the evicted run of tiles.
+#[cfg(target_os = "linux")]
+#[test]
+fn evicted_tiles_give_their_pages_back() {
+    use std::sync::Arc;
+    use terraclip::pack::{reader::PackReader, stream};
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let path = tmp("evict.tcz");
+    let o = stream::Options::new(0.0, 32, Filter::default(), "evict");
+    let p = Procedural::new(11, 4097, 257);
+    stream::pack(
+        &ProceduralRows::new(p.clone()).unwrap(),
+        &path,
+        &o,
+        &mut |_, _| {},
+    )
+    .unwrap();
+    let whole = p.generate().unwrap();
+    let reader = PackReader::open(&path).unwrap();
+    let mut pyr = Pyramid::decoded(Arc::new(reader), Filter::default(), u64::MAX).unwrap();
+    let page = 4096usize;
+    // Resident pages and the samples of level 0 over columns 0..2048 of
+    // rows 64..128, counting only pages wholly inside that span.
+    let survey = |pyr: &Pyramid| -> (usize, usize, bool) {
+        let lv = &pyr.levels[0];
+        let (mut pages, mut resident) = (0, 0);
+        let mut zeros = true;
+        for y in 64..128 {
+            let row = &lv.data[y * lv.width..y * lv.width + 2048];
+            let (a, b) = (row.as_ptr() as usize, row.as_ptr() as usize + 2048 * 4);
+            let (first, last) = (a.div_ceil(page) * page, b / page * page);
+            let mut vec = vec![0u8; (last - first) / page];
+            // SAFETY: the range is whole pages inside a live allocation;
+            // mincore only reports residency.
+            let r = unsafe {
+                libc::mincore(first as *mut libc::c_void, last - first, vec.as_mut_ptr())
+            };
+            assert_eq!(r, 0);
+            pages += vec.len();
+            resident += vec.iter().filter(|&&v| v & 1 == 1).count();
+            let inner = (first - a) / 4..(last - a) / 4;
+            zeros &= row[inner].iter().all(|&v| v == 0.0);
+        }
+        (pages, resident, zeros)
+    };
+    // A window over columns 0..2047 of rows 64..127.
+    pyr.build_around(&[[0, 64, 2047, 127]]);
+    let (pages, resident, zeros) = survey(&pyr);
+    assert!(pages >= 64, "{pages}");
+    assert_eq!(resident, pages, "decoded, every page is resident");
+    assert!(!zeros);
+    // Moved east: columns 0..2047 are more than a ring of tiles away.
+    let b = pyr.build_around(&[[3000, 64, 4000, 127]]);
+    // The 64 × 2 tiles of 32² under the old window at least.
+    assert!(b.evicted >= 128, "{b:?}");
+    let (_, resident, _) = survey(&pyr);
+    assert_eq!(resident, 0, "evicted, no page of the span is resident");
+    let (_, _, zeros) = survey(&pyr);
+    assert!(zeros, "evicted samples read as zeros");
+    // And back: the whole decode's bits again.
+    pyr.build_around(&[[0, 64, 2047, 127]]);
+    let lv = &pyr.levels[0];
+    for y in 64..128 {
+        for x in 0..2048 {
+            assert_eq!(
+                lv.data[y * lv.width + x].to_bits(),
+                whole.get(x, y).to_bits(),
+                "({x}, {y})"
+            );
+        }
+    }
+}
