@@ -20,6 +20,7 @@ use serde_json::Value;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use terraclip::check::outside::Mode;
 use terraclip::scene::Scene;
 use terraclip::terrain::Heightmap;
 
@@ -227,7 +228,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("pack", 2),
     ("upsampled pack", 0),
     ("export", 189),
-    ("compare", 30),
+    ("compare", 49),
     ("merge cracks", 28),
     ("merge fly", 19),
     ("merge golden", 35),
@@ -344,11 +345,10 @@ fn compare_once(
     image: &Path,
     depth: Option<&Path>,
     named: &Path,
+    mode: Mode,
 ) -> Result<bool, String> {
-    use terraclip::check::outside::{run, Mode};
-    match catch_unwind(AssertUnwindSafe(|| {
-        run(r, image, depth, Mode::Tiered, None)
-    })) {
+    use terraclip::check::outside::run;
+    match catch_unwind(AssertUnwindSafe(|| run(r, image, depth, mode, None))) {
         Err(_) => Err(format!("compare panicked on {}", named.display())),
         Ok(Ok(o)) => Ok(o.pass),
         Ok(Err(e)) => {
@@ -427,11 +427,13 @@ fn merge_seeds(d: &Path) -> Vec<(&'static str, [Part; 2])> {
     // An export's parts are folders: two real ones, written by the CLI.
     let scene_file = d.join("merge-seed.toml");
     std::fs::write(&scene_file, SCENE).unwrap();
+    // Named relative to `d`, the folder the merges run in: the parts'
+    // text, and so the damage drawn for it, is then the same in any clone.
     let export = [0, 1].map(|i| {
-        let out = d.join(format!("export-part{i}"));
+        let out = format!("export-part{i}");
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
-            .arg("export")
-            .arg(&scene_file)
+            .current_dir(d)
+            .args(["export", "merge-seed.toml"])
             .args([
                 "--frames",
                 "2",
@@ -571,8 +573,26 @@ const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("golden", 68),
     ("tradeoff", 72),
     ("check-gpu", 72),
-    ("export", 101),
+    ("export", 94),
 ];
+
+/// `terraclip ARGS`: an exit with a code, never a signal; a failure that
+/// names `file`, without a panic (a comparison that fails is an exit of 1
+/// with its report, not an error: it need not name the file).
+fn cli_exits(args: &[&std::ffi::OsStr], file: &str) -> Result<(), String> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    match out.status.code() {
+        None => Err(format!("killed by a signal: {:?}", out.status)),
+        Some(0) => Ok(()),
+        Some(_) if err.contains("panicked") => Err(format!("panicked: {err}")),
+        Some(_) if err.contains(file) || err.contains("does not match") => Ok(()),
+        Some(c) => Err(format!("exit {c} naming no {file}: {err}")),
+    }
+}
 
 /// `terraclip merge` of the two parts written to files: an exit with a
 /// code, never a signal, and a failure that names a part or the parts.
@@ -740,6 +760,7 @@ fn ten_thousand_malformed_inputs_never_panic() {
     // Exports (1,000: one file cut, flipped or edited, the manifest made
     // to match so the parsers meet it) and `compare`'s inputs (400:
     // damaged PNGs and depth files of their own renderer).
+    let mut cli_failures: Vec<String> = vec![];
     let mut ex_rng = Rng(0xE7_0057_5EED_0001);
     let seed = export_seed(&d);
     let case = d.join("export-case");
@@ -749,7 +770,8 @@ fn ten_thousand_malformed_inputs_never_panic() {
         let f = f.unwrap();
         std::fs::copy(f.path(), case.join(f.file_name())).unwrap();
     }
-    for _ in 0..1000 {
+    let mut cli_cases = 0;
+    for i in 0..1000 {
         let name = EXPORT_FILES[ex_rng.below(EXPORT_FILES.len())];
         let good = std::fs::read(seed.join(name)).unwrap();
         let bytes = if name.ends_with(".json") && ex_rng.below(2) == 0 {
@@ -759,6 +781,22 @@ fn ten_thousand_malformed_inputs_never_panic() {
         };
         reexport(&case, name, &bytes);
         record("export", export_once(&case, name));
+        // Every twentieth through the CLI: `compare` reads the export.
+        if i % 20 == 0 {
+            cli_cases += 1;
+            let image = seed.join("colour.png");
+            if let Err(e) = cli_exits(
+                &[
+                    "compare".as_ref(),
+                    case.as_os_str(),
+                    "--image".as_ref(),
+                    image.as_os_str(),
+                ],
+                "export-case",
+            ) {
+                cli_failures.push(format!("export case {i}: {e}"));
+            }
+        }
         reexport(&case, name, &good);
         cases += 1;
     }
@@ -767,9 +805,13 @@ fn ten_thousand_malformed_inputs_never_panic() {
     let png = std::fs::read(seed.join("colour.png")).unwrap();
     let raw = std::fs::read(seed.join("depth.f32")).unwrap();
     let exr = std::fs::read(seed.join("depth.exr")).unwrap();
-    for i in 0..400 {
+    for i in 0..600 {
         std::fs::write(&theirs, &png).unwrap();
-        let (depth, named) = match i % 3 {
+        // Each mode in turn; FLIP compares colour alone, so its cases
+        // damage the image.
+        let mode = [Mode::Exact, Mode::Tiered, Mode::Flip][i / 3 % 3];
+        let damage = if mode == Mode::Flip { 0 } else { i % 3 };
+        let (depth, named) = match damage {
             0 => {
                 std::fs::write(&theirs, mutate(&mut ex_rng, &png)).unwrap();
                 std::fs::write(&theirs_depth, &raw).unwrap();
@@ -784,7 +826,26 @@ fn ten_thousand_malformed_inputs_never_panic() {
                 (&theirs_exr, &theirs_exr)
             }
         };
-        record("compare", compare_once(&seed, &theirs, Some(depth), named));
+        let depth = (mode != Mode::Flip).then_some(depth.as_path());
+        record("compare", compare_once(&seed, &theirs, depth, named, mode));
+        if i % 20 == 0 {
+            cli_cases += 1;
+            let mut args = vec![
+                "compare".as_ref(),
+                seed.as_os_str(),
+                "--image".as_ref(),
+                theirs.as_os_str(),
+            ];
+            if let Some(d) = depth {
+                args.extend(["--depth".as_ref(), d.as_os_str()]);
+            }
+            let m: &std::ffi::OsStr = mode.name().as_ref();
+            args.extend(["--mode".as_ref(), m]);
+            let name = named.file_name().unwrap().to_string_lossy().into_owned();
+            if let Err(e) = cli_exits(&args, &name) {
+                cli_failures.push(format!("compare case {i}: {e}"));
+            }
+        }
         cases += 1;
     }
     // `merge`'s part files (1,200: one of two parts of a crack survey, a
@@ -793,10 +854,14 @@ fn ten_thousand_malformed_inputs_never_panic() {
     // its charts, an export's joins its folders). Every tenth case also
     // goes through `terraclip merge`.
     let mut merge_rng = Rng(0x3E26_E5EE_D000_0001);
+    // The export parts name their folders relative to `d`. This is the
+    // file's only test, so no other thread minds the working folder.
+    let cwd = std::env::current_dir().unwrap();
+    std::env::set_current_dir(&d).unwrap();
     let charts = d.join("merge-charts");
     let joined = d.join("export-joined");
     let mut reached: Vec<(&str, usize)> = vec![];
-    let (mut merge_cli, mut cli_failures) = (0, vec![]);
+    let mut merge_cli = 0;
     for (kind, good) in merge_seeds(&d) {
         reached.push((kind, 0));
         for i in 0..200 {
@@ -832,6 +897,7 @@ fn ten_thousand_malformed_inputs_never_panic() {
             cases += 1;
         }
     }
+    std::env::set_current_dir(&cwd).unwrap();
     let secs = start.elapsed().as_secs_f64();
     println!(
         "fuzz: {cases} cases in {secs:.1} s: {loaded} loaded, {} clean errors, {} failures",
@@ -873,5 +939,6 @@ fn ten_thousand_malformed_inputs_never_panic() {
     println!("merge reached: {reached:?}");
     assert_eq!(reached, EXPECTED_MERGED, "cases reaching merge per kind");
     assert_eq!(merge_cli, 6 * 20);
+    assert_eq!(cli_cases, 50 + 30);
     assert!(cli_failures.is_empty(), "{cli_failures:?}");
 }

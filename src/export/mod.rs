@@ -1035,7 +1035,7 @@ pub fn join(parts: &[Written], names: &[&str], dir: &Path) -> Result<Written> {
             return Err(Error::file(
                 &p.dir,
                 format!(
-                    "an export of {}, where the first part's is of {}",
+                    "an export of {}, where the first part's is of {} ({name})",
                     p.scene, first.scene
                 ),
             ));
