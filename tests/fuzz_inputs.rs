@@ -224,6 +224,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("asc", 147),
     ("raw f32 + sidecar", 334),
     ("scene", 125),
+    ("scene over a pack", 32),
     ("geographic tif", 617),
     ("pack", 2),
     ("upsampled pack", 0),
@@ -714,6 +715,53 @@ fn ten_thousand_malformed_inputs_never_panic() {
         record("scene", scene_once(&text, &d));
         cases += 1;
     }
+    // Scenes over a pack (600, a generator of their own so the kinds
+    // above keep their draws): the pack alone, with a decode budget, and
+    // with synthesis below it, each mutated as the scenes above are.
+    let pack = pack_seed(&d, terraclip::pack::Predictor::Upsampled);
+    std::fs::write(d.join("fuzz-pack.tcz"), &pack).unwrap();
+    let over_pack = SCENE.replace(
+        "procedural = { seed = 5, width = 65, height = 65, amplitude = 500.0, wavelength = 64.0 }",
+        "file = \"fuzz-pack.tcz\"",
+    );
+    assert_ne!(over_pack, SCENE);
+    let plain = over_pack.replace(
+        "synthesis = { levels = 2, roughness = 0.8, seed = 3 }\n",
+        "",
+    );
+    let budget = plain.replace("[pyramid]\n", "[pyramid]\nbudget = 400\n");
+    let seeds = [plain, budget, over_pack];
+    for (k, seed) in seeds.iter().enumerate() {
+        assert!(
+            scene_once(seed, &d) == Ok(true),
+            "scene over a pack, seed {k}"
+        );
+    }
+    let mut scene_rng = Rng(0x5CE_E0FE_A9AC_0001);
+    // Cases sent through the CLI binary too, and what went wrong there.
+    let (mut cli_cases, mut cli_failures) = (0, Vec::<String>::new());
+    for i in 0..600 {
+        let text = mutate_text(&mut scene_rng, &seeds[i % 3]);
+        record("scene over a pack", scene_once(&text, &d));
+        // Every twentieth through `terraclip render`.
+        if i % 20 == 0 {
+            cli_cases += 1;
+            let (file, png) = (d.join("fuzz.toml"), d.join("fuzz.png"));
+            std::fs::write(&file, &text).unwrap();
+            if let Err(e) = cli_exits(
+                &[
+                    "render".as_ref(),
+                    file.as_os_str(),
+                    "-o".as_ref(),
+                    png.as_os_str(),
+                ],
+                "fuzz.toml",
+            ) {
+                cli_failures.push(format!("scene over a pack case {i}: {e}"));
+            }
+        }
+        cases += 1;
+    }
     // Kinds on generators of their own, so the kinds above keep their
     // draws: GeoTIFFs with a GeoKey directory and a tie point (1,600:
     // mutated keys, model types, units, scales and latitudes), and packs
@@ -760,7 +808,6 @@ fn ten_thousand_malformed_inputs_never_panic() {
     // Exports (1,000: one file cut, flipped or edited, the manifest made
     // to match so the parsers meet it) and `compare`'s inputs (400:
     // damaged PNGs and depth files of their own renderer).
-    let mut cli_failures: Vec<String> = vec![];
     let mut ex_rng = Rng(0xE7_0057_5EED_0001);
     let seed = export_seed(&d);
     let case = d.join("export-case");
@@ -770,7 +817,6 @@ fn ten_thousand_malformed_inputs_never_panic() {
         let f = f.unwrap();
         std::fs::copy(f.path(), case.join(f.file_name())).unwrap();
     }
-    let mut cli_cases = 0;
     for i in 0..1000 {
         let name = EXPORT_FILES[ex_rng.below(EXPORT_FILES.len())];
         let good = std::fs::read(seed.join(name)).unwrap();
@@ -939,6 +985,6 @@ fn ten_thousand_malformed_inputs_never_panic() {
     println!("merge reached: {reached:?}");
     assert_eq!(reached, EXPECTED_MERGED, "cases reaching merge per kind");
     assert_eq!(merge_cli, 6 * 20);
-    assert_eq!(cli_cases, 50 + 30);
+    assert_eq!(cli_cases, 30 + 50 + 30);
     assert!(cli_failures.is_empty(), "{cli_failures:?}");
 }
