@@ -394,3 +394,54 @@ fn the_command_exits_non_zero_on_failure_and_writes_its_pictures() {
         );
     }
 }
+
+/// A depth OpenEXR's channel, one case per fallback: `Z`, else `depth`,
+/// else `Y`, else `R`, else the only channel; two unnamed channels are an
+/// error naming the file. Each channel holds its own values, so the one
+/// read is known.
+#[test]
+fn depth_exr_channels_are_read_in_their_documented_order() {
+    use terraclip::check::outside::load_depth;
+    use terraclip::export::exr::{write, FloatLayer};
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("depth-channels");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (3u32, 2u32);
+    // Channel `name`'s values: distinct per channel.
+    let values = |name: &str| -> Vec<f32> {
+        let k = name.bytes().map(u32::from).sum::<u32>() as f32;
+        (0..w * h).map(|i| k / 1000.0 + i as f32 / 100.0).collect()
+    };
+    for (channels, want) in [
+        (&["Z", "depth", "Y", "R"][..], Some("Z")),
+        (&["depth", "Y", "R"][..], Some("depth")),
+        (&["Y", "R", "G"][..], Some("Y")),
+        (&["R", "G", "B"][..], Some("R")),
+        (&["G"][..], Some("G")),
+        (&["G", "B"][..], None),
+    ] {
+        let layer = FloatLayer {
+            name: "depth".into(),
+            width: w as usize,
+            height: h as usize,
+            channels: channels
+                .iter()
+                .map(|c| (c.to_string(), values(c)))
+                .collect(),
+        };
+        let path = dir.join(format!("{}.exr", channels.join("-")));
+        std::fs::write(&path, write(&[layer]).unwrap()).unwrap();
+        match (load_depth(&path, w, h), want) {
+            (Ok(d), Some(c)) => {
+                assert_eq!(d, values(c), "{channels:?}: read another channel than {c}")
+            }
+            (Err(e), None) => {
+                let e = e.to_string();
+                assert!(
+                    e.contains("G-B.exr") && e.contains("no channel named Z, depth, Y or R"),
+                    "{e}"
+                );
+            }
+            (r, want) => panic!("{channels:?}: {r:?}, wanted {want:?}"),
+        }
+    }
+}
