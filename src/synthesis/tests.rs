@@ -124,18 +124,33 @@ fn detail_is_measured_against_the_subdivision() {
     assert_eq!(detail_rms(&fine, &c), Some(0.0));
     let s = synthesize(&c, &NoiseTable::new(3), 1, 2.0);
     let d = detail_rms(&s, &c).unwrap();
+    // The RMS of N ≈ 3,168 noise samples (the three phases of 65² that
+    // are not the coarse level's) estimates the amplitude with a relative
+    // standard error of about 1/√(2N) = 1.26 % for Gaussian-like noise;
+    // 5 % is four of them.
     assert!((d / 2.0 - 1.0).abs() < 0.05, "{d}");
 }
 
 /// 2^x from square roots and doublings: exact at whole and half powers,
-/// and close to the real value between them.
+/// and between them 2^(q/1024) for x rounded to q/1024: within the ten
+/// roundings of its square roots and products (16 ulps) of the library's
+/// 2^(q/1024), and within half a step, 2^x·(2^(1/2048) − 1), of 2^x.
 #[test]
 fn pow2_is_exact_where_it_can_be() {
     assert_eq!(pow2(0.0), 1.0);
     assert_eq!(pow2(3.0), 8.0);
     assert_eq!(pow2(-2.0), 0.25);
     assert_eq!(pow2(0.5), std::f64::consts::SQRT_2);
-    assert!((pow2(-0.3) - 0.812252396356).abs() < 1e-3);
+    for x in [-0.3, 0.7, 1.9, -2.45, 0.001] {
+        let q = (x * 1024.0f64).round();
+        let on_grid = 2f64.powf(q / 1024.0);
+        assert!(
+            (pow2(x) - on_grid).abs() <= 16.0 * f64::EPSILON * on_grid,
+            "{x}"
+        );
+        let half_step = 2f64.powf(x) * (2f64.powf(1.0 / 2048.0) - 1.0);
+        assert!((pow2(x) - 2f64.powf(x)).abs() <= half_step, "{x}");
+    }
 }
 
 /// The local gain is large where the map has detail and small where it
@@ -157,8 +172,13 @@ fn local_gain_follows_the_maps_detail() {
     let g = detail_gain(&fine, &c, 2);
     assert_eq!(g[10 * 65 + 10], 0.0, "no detail, no noise");
     assert!(g[10 * 65 + 55] > 1.0, "{}", g[10 * 65 + 55]);
+    // Exactly 1 but for rounding: the squared detail is 9 on columns
+    // 41..=64 and 0 elsewhere, uniform down each column, so the 5-wide
+    // boxes' means over the level sum to the same 24 columns of 9 as the
+    // level's own mean (the boxes clipped at the edges lie wholly on one
+    // side). The square roots and sums round at 1e-16 a sample.
     let ms = g.iter().map(|v| v * v).sum::<f64>() / g.len() as f64;
-    assert!((ms - 1.0).abs() < 0.1, "{ms}");
+    assert!((ms - 1.0).abs() < 1e-12, "{ms}");
 }
 
 /// A level made window by window (tiles of odd and even sizes and
