@@ -230,12 +230,12 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("upsampled pack", 0),
     ("export", 189),
     ("compare", 49),
-    ("merge cracks", 28),
-    ("merge fly", 19),
-    ("merge golden", 35),
+    ("merge cracks", 21),
+    ("merge fly", 22),
+    ("merge golden", 34),
     ("merge tradeoff", 23),
-    ("merge check-gpu", 27),
-    ("merge export", 25),
+    ("merge check-gpu", 30),
+    ("merge export", 23),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -570,10 +570,10 @@ fn merge_result(
 /// a third are edited as a tree, which keeps the JSON whole).
 const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("cracks", 78),
-    ("fly", 66),
-    ("golden", 68),
-    ("tradeoff", 72),
-    ("check-gpu", 72),
+    ("fly", 73),
+    ("golden", 67),
+    ("tradeoff", 71),
+    ("check-gpu", 71),
     ("export", 94),
 ];
 

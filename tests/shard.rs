@@ -140,6 +140,42 @@ fn three_crack_survey_shards_merged_equal_one_run() {
     }
 }
 
+/// A survey whose schemes keep state that changes what they draw: the
+/// clipmap under a texel budget (levels whose update is cut short wait,
+/// and what waits depends on every frame before) and ROAM (its split and
+/// merge queues). A part must move each scheme through the views it does
+/// not own; one that skipped them would meet its views in another state,
+/// and its crack and missing-terrain counts would differ from one run's.
+#[test]
+fn stateful_crack_survey_shards_merged_equal_one_run() {
+    let dir = common::fresh_tmp("shard", "cracks-stateful");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("budget.toml");
+    let text = include_str!("../src/scene/default.toml")
+        .replace("[lod]\n", "[lod]\ntexel_budget = 3000\n");
+    assert!(text.contains("texel_budget = 3000"));
+    std::fs::write(&scene, text).unwrap();
+    let s = scene.to_str().unwrap();
+    let args = [
+        "cracks",
+        s,
+        "--views",
+        "9",
+        "--lod",
+        "clipmap,roam",
+        "--size",
+        "96x60",
+        "--json",
+    ];
+    let (one, merged, _) = sharded(&args, 3, &dir);
+    assert_eq!(one, merged);
+    let v: serde_json::Value = serde_json::from_str(&one).unwrap();
+    assert_eq!(v["views_surveyed"], 9);
+    for s in v["schemes"].as_array().unwrap() {
+        assert!(s["triangles"].as_u64().unwrap() > 0, "{s}");
+    }
+}
+
 #[test]
 fn three_golden_shards_merged_equal_one_run() {
     let dir = common::fresh_tmp("shard", "golden");

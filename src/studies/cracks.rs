@@ -59,6 +59,10 @@ pub struct SchemeCracks {
     /// Candidates whose ray meets the LOD's surface only at a depth the
     /// depth buffer cannot tell from the far plane ([`Candidate::FarDepth`]).
     pub far_depth_pixels: usize,
+    /// Triangles drawn over the surveyed views: what the scheme drew, so
+    /// that a part surveyed in another state than one run shows it (a
+    /// texel budget's waiting levels, ROAM's queues) where no crack does.
+    pub triangles: usize,
     /// Views with at least one hole.
     pub views_with_cracks: usize,
     /// Views with at least one LOD-sky pixel.
@@ -136,6 +140,7 @@ pub fn survey(
             crack_pixels: 0,
             lod_sky_pixels: 0,
             far_depth_pixels: 0,
+            triangles: 0,
             views_with_cracks: 0,
             views_with_lod_sky: 0,
             worst_view: 0,
@@ -157,6 +162,7 @@ pub fn survey(
         let (reference, _) = brute.render(cam, &opts, Passes::default())?;
         for (s, r) in sessions.iter_mut().zip(out.iter_mut()) {
             let (frame, _) = s.frame(cam, &mut Passes::default())?;
+            r.triangles += frame.triangle_count();
             let (img, _) = render::draw(&frame, &opts, &mut Passes::default());
             let candidates = metrics::crack_candidates(&img, &reference, [255, 0, 0]);
             let (mut c, mut sky, mut far) = (0, 0, 0);
@@ -252,6 +258,7 @@ pub fn merge(parts: &[CrackReport]) -> std::result::Result<CrackReport, String> 
                 crack_pixels: total(|s| s.crack_pixels)?,
                 lod_sky_pixels: total(|s| s.lod_sky_pixels)?,
                 far_depth_pixels: total(|s| s.far_depth_pixels)?,
+                triangles: total(|s| s.triangles)?,
                 views_with_cracks: total(|s| s.views_with_cracks)?,
                 views_with_lod_sky: total(|s| s.views_with_lod_sky)?,
                 worst_images: None,
@@ -523,6 +530,7 @@ mod tests {
             crack_pixels: cracks,
             lod_sky_pixels: 1,
             far_depth_pixels: 0,
+            triangles: 7,
             views_with_cracks: usize::from(cracks > 0),
             views_with_lod_sky: 1,
             worst_view: surveyed,
