@@ -5,6 +5,7 @@
 #
 #   cargo build --release && strip -o .gpu/terraclip target/release/terraclip
 #   (device run, carry [".gl", ".gpu"]) bash .ci/gpu-window.sh
+#   ONLY_COMPARE=1 bash .ci/gpu-window.sh    # the compare step alone
 #
 # `.gl` holds Debian's Vulkan and GL loader packages (the device README
 # says how to fetch them). Every figure is written as JSON under $OUT.
@@ -20,19 +21,24 @@ nvidia-smi --query-gpu=name,driver_version --format=csv,noheader >"$OUT/gpu.txt"
 B=${B:-.gpu/terraclip}
 S=$(mktemp -d)   # scratch: images and exports that need not come back
 run() { local name=$1; shift; log "$name"; timeout "${T:-120}" "$B" "$@" --json >"$S/$name.json" 2>"$S/$name.err"; echo "rc=$?" >>"$S/$name.err"; }
+[ "${ONLY_COMPARE:-0}" = 1 ] || {
 run check-gpu-vulkan check-gpu --frames 3 --out "$S/cg"
 T=200 run check-gpu-vulkan-path check-gpu golden/default.toml golden/grazing-horizon.toml golden/synthesis-close.toml golden/wireframe.toml --frames 100 --out "$S/cgp"
 run check-gpu-gl check-gpu --api gl --out "$S/cggl"
 run check-gpu-update check-gpu golden/synthesis-close.toml golden/pack-lossy.toml --update gpu --frames 20 --out "$S/cgu"
 run bench-default bench
 run bench-update bench golden/synthesis-close.toml --update
-# compare: the GPU's own frame of each golden against its export, tiered.
+}
+# compare: the GPU's own frame of each golden against its export, tiered
+# and FLIP (the render writes colour alone).
 for g in golden/*.toml; do
   s=$(basename "$g" .toml)
   "$B" export "$g" --out "$S/exp-$s" >/dev/null 2>>"$S/compare.err" \
-    && "$B" render "$g" --backend gpu -o "$S/gpu-$s.png" >/dev/null 2>>"$S/compare.err" \
-    && "$B" compare "$S/exp-$s" --image "$S/gpu-$s.png" --mode tiered --json >"$S/compare-$s.json" 2>>"$S/compare.err"
-  echo "$s rc=$?" >>"$S/compare.err"
+    && "$B" render "$g" --backend gpu -o "$S/gpu-$s.png" >/dev/null 2>>"$S/compare.err" || continue
+  for m in tiered flip; do
+    "$B" compare "$S/exp-$s" --image "$S/gpu-$s.png" --mode $m --json >"$S/compare-$m-$s.json" 2>>"$S/compare.err"
+    echo "$s $m rc=$?" >>"$S/compare.err"
+  done
 done
 log "compare done"
 # Eight files at most come back: the JSON figures in one tarball, the log,
