@@ -206,3 +206,62 @@ fn the_cli_packs_upsampled_and_refuses_it_lossless() {
         .fold(0.0, f64::max);
     assert!(worst <= 1.0 && worst > 0.5, "{worst}");
 }
+
+/// A flight over an upsampled pack decoded tile by tile as its windows
+/// reach the tiles (and evicting those they leave): on each of 48 frames,
+/// every drawn level's window holds the whole decode's bits, so the frame
+/// is the one the whole decode draws; each frame's levels are all ready.
+/// (The lossless flight in `tests/pack.rs` compares images with the map
+/// itself; a lossy pack's reference is its own whole decode.)
+#[test]
+fn a_flight_over_an_upsampled_pack_decoded_as_it_goes_holds_the_whole_decode() {
+    use terraclip::frame::stats::Passes;
+    use terraclip::pack::{file, stream, Predictor};
+    use terraclip::render::Session;
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let p = Procedural::new(20041, 4097, 513);
+    let path = tmp("flight-upsampled.tcz");
+    let mut o = stream::Options::new(1.0, 32, Filter::default(), "flight");
+    o.predictor = Predictor::Upsampled;
+    stream::pack(&ProceduralRows::new(p).unwrap(), &path, &o, &mut |_, _| {}).unwrap();
+    let (_, whole) = file::read_levels(&path).unwrap();
+    let mut scene = terraclip::scene::Scene::default_scene();
+    (scene.terrain.procedural, scene.terrain.file) = (None, Some(path));
+    scene.camera.position = [2000.0, -2500.0, 900.0];
+    scene.camera.look_at = Some([4000.0, -2500.0, 150.0]);
+    (scene.image.width, scene.image.height) = (320, 180);
+    let mut session = Session::new(&scene, &mut Passes::default()).unwrap();
+    let (mut evicted, mut windows) = (0, 0);
+    for (i, cam) in terraclip::studies::views::path(&scene.camera(), 48, 400.0)
+        .iter()
+        .enumerate()
+    {
+        let (frame, clip) = session.frame(cam, &mut Passes::default()).unwrap();
+        let lazy = session
+            .lazy_frame(clip.as_ref())
+            .expect("a pack decoded tile by tile");
+        if i == 0 {
+            assert!(lazy.tiles_this_frame > 0);
+        }
+        assert_eq!(
+            (lazy.levels_unbuilt, lazy.levels_waiting),
+            (0, 0),
+            "frame {i}"
+        );
+        evicted += lazy.tiles_evicted.unwrap_or(0);
+        for info in frame.resources.levels.iter().flatten() {
+            let [x, y] = info.origin;
+            let [w, h] = info.size.map(|v| v as i64);
+            common::same_window(
+                &session.pyramid().levels[info.level],
+                &whole[info.level],
+                info.level,
+                [x, y, x + w - 1, y + h - 1],
+            );
+            windows += 1;
+        }
+    }
+    assert!(windows >= 48 * 5, "{windows} windows checked");
+    assert!(evicted > 100, "the flight leaves tiles behind: {evicted}");
+}
