@@ -394,3 +394,100 @@ fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
         assert!(p >= base + band as f64 * mib, "band {band} MiB: peak {p} B");
     }
 }
+
+/// Peak resident memory of a flight over a pack, in a process of its
+/// own: the default scene (n = 63) over a 4097² lossless pack in 128²
+/// tiles, flown 160 and 640 frames of 100 m. Tiles are decoded under each
+/// level's window and a ring of one tile, and evicted beyond it, so each
+/// level holds tiles over at most 4 × 4 tiles of 128² (65 texels and a
+/// tile each side): on each of their at most 512 sample rows, at most 5
+/// pages (2 KiB of heights over 2 pages and a page they straddle, 512 B
+/// of flags over 2). Levels shorter than 512 rows hold their own height
+/// in rows. Over the same command's peak over a 513² pack (the program,
+/// its buffers and a whole small map), that is the bound. And a flight
+/// ten times longer peaks within 1 MiB of the shorter one's: what the
+/// windows hold does not grow with the path. Measured 2026-12-04, debug
+/// build, 2 workers: 35.7 and 35.9 MiB against a bound of 63.8 MiB (the
+/// 513² flight 14.0); before pack tiles were read rather than mapped and
+/// whole rows of evicted tiles released as one span, 45.8 and 76.1 MiB.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_flight_over_a_pack_holds_what_its_windows_need() {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("fly-rss");
+    std::fs::create_dir_all(&dir).unwrap();
+    let default = include_str!("../src/scene/default.toml");
+    let run = |args: &[&str]| -> serde_json::Value {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+            .env("RAYON_NUM_THREADS", "2")
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let peak = |side: usize, frames: usize| -> f64 {
+        let (src, pack, scene) = (
+            format!("p{side}.toml"),
+            format!("p{side}.tcz"),
+            format!("fly{side}.toml"),
+        );
+        let text = default.replace(
+            "width = 1025, height = 1025",
+            &format!("width = {side}, height = {side}"),
+        );
+        std::fs::write(dir.join(&src), &text).unwrap();
+        if !dir.join(&pack).exists() {
+            run(&["pack", &src, "-o", &pack, "--band-mib", "4", "--json"]);
+        }
+        let over = text
+            .lines()
+            .map(|l| {
+                if l.starts_with("procedural =") {
+                    format!("file = \"{pack}\"")
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(over.contains(&format!("file = \"{pack}\"")));
+        std::fs::write(dir.join(&scene), over).unwrap();
+        let f = frames.to_string();
+        let v = run(&[
+            "fly",
+            &scene,
+            "--frames",
+            &f,
+            "--step",
+            "100",
+            "--no-popping",
+            "--size",
+            "160x90",
+            "--json",
+        ]);
+        v["peak_rss_bytes"].as_f64().unwrap()
+    };
+    let mib = (1u64 << 20) as f64;
+    let base = peak(513, 80);
+    // Rows a level holds at most: 4 tiles of 128, or its own height.
+    let rows: f64 = (0..9).map(|l| ((4096usize >> l) + 1).min(512) as f64).sum();
+    let bound = base + rows * 5.0 * 4096.0;
+    let (short, long) = (peak(4097, 160), peak(4097, 640));
+    println!(
+        "base {:.1} MiB, 160 frames {:.1}, 640 frames {:.1}, bound {:.1}",
+        base / mib,
+        short / mib,
+        long / mib,
+        bound / mib
+    );
+    assert!(long <= bound && short <= bound, "over {bound} B");
+    assert!(
+        long <= short + mib,
+        "the peak grows with the path: {short} -> {long} B"
+    );
+}

@@ -324,8 +324,8 @@ pub(crate) fn tile_name(l: usize, t: usize, nx: usize) -> String {
 }
 
 /// The index after the header (which ends at `at`) of a file of
-/// `file_len` bytes whose first bytes are `bytes` (the whole file, or at
-/// least through the index): per level, each tile's entry, checked to lie
+/// `file_len` bytes whose first bytes are `bytes` (the whole file, or
+/// exactly through the index): per level, each tile's entry, checked to lie
 /// inside the file; and where the tiles end, which must be the file's end
 /// ([`check_end`]).
 pub(crate) fn parse_index(
@@ -393,8 +393,11 @@ pub(crate) fn parse_index(
             }
             if e.offset != next {
                 // The entry before may be the liar: a length that is wrong
-                // leaves that tile's bytes unlike its checksum. Name it.
-                if let Some((pl, pt, pnx, p)) = prev {
+                // leaves that tile's bytes unlike its checksum. Name it,
+                // where `bytes` hold that tile (the whole file's do; a
+                // reader that reads only the index names the offset).
+                let held = |p: &Entry| p.offset + p.len as u64 <= bytes.len() as u64;
+                if let Some((pl, pt, pnx, p)) = prev.filter(|(_, _, _, p)| held(p)) {
                     tile_bytes(bytes, p, || tile_name(pl, pt, pnx))?;
                 }
                 return Err(format!(

@@ -1,66 +1,116 @@
 //! A pack opened to be decoded a tile at a time, as a clipmap's windows
-//! reach its tiles ([`crate::pyramid::TileSource`]): the file is
-//! memory-mapped, its header and index are read and checked when it is
-//! opened, and each tile's CRC when it is decoded, so opening a pack of
-//! any size reads only its header and index.
+//! reach its tiles ([`crate::pyramid::TileSource`]): its header and index
+//! are read and checked when it is opened, and each tile is read (one
+//! positioned read) and its CRC checked when it is decoded, so opening a
+//! pack of any size reads only its header and index.
+//!
+//! Tiles are read, not memory-mapped: a mapping's pages count in the
+//! process's resident set, and the kernel maps whole page-cache folios
+//! around a tile (a 128² lossless tile is ~50 KB, a folio up to 2 MB), so
+//! a flight's resident file pages grew with the tiles it passed, however
+//! each tile's range was dropped after its decode (to 20 MB of a 70 MB
+//! pack in 1,200 steps). Read pages stay in the page cache, outside it.
 
 use super::codec::{self, coarse_rows, tile_rect, Quant};
-use super::file::{check_end, parse_header, parse_index, tile_bytes, tile_name, Entry, Header};
+use super::file::{check_end, parse_header, parse_index, tile_name, Entry, Header};
 use crate::error::{Error, Result};
 use crate::pyramid::{PyramidLevel, TileSource};
-use crate::terrain::huge;
+use std::fs::File;
+use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
 
 /// A pack ready to decode tiles from.
 #[derive(Debug)]
 pub struct PackReader {
     path: PathBuf,
-    map: memmap2::Mmap,
+    file: File,
     header: Header,
     index: Vec<Vec<Entry>>,
     quant: Vec<Quant>,
 }
 
+/// `len` bytes of `file` at `at`, or why not.
+fn read_at(file: &File, at: u64, len: usize) -> std::io::Result<Vec<u8>> {
+    let mut buf = vec![0u8; len];
+    file.read_exact_at(&mut buf, at)?;
+    Ok(buf)
+}
+
 impl PackReader {
-    /// Maps `path` and reads its header and index. Errors name the file,
-    /// and the tile whose index entry is at fault.
+    /// Reads `path`'s header and index. Errors name the file, and the tile
+    /// whose index entry is at fault.
     pub fn open(path: &Path) -> Result<Self> {
-        let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        // SAFETY: read-only and private; a pack truncated under a running
-        // session by another process could fault, as with any reader of a
-        // shared file; nothing writes through the mapping.
-        let map = unsafe { memmap2::Mmap::map(&f) }.map_err(|e| Error::io(path, e))?;
+        let io = |e| Error::io(path, e);
+        let file = File::open(path).map_err(io)?;
+        let file_len = file.metadata().map_err(io)?.len();
         let bad = |r: String| Error::file(path, r);
-        let (header, at) = parse_header(&map).map_err(bad)?;
-        let (index, end) = parse_index(&map, &header, at, map.len() as u64).map_err(bad)?;
-        if let Err(r) = check_end(end, map.len() as u64) {
+        // The fixed prefix, then the header it says follows (bounded by the
+        // file), then the index the header sizes (checked against the
+        // bytes after the header before a byte of it is allocated).
+        let fixed = read_at(&file, 0, file_len.min(20) as usize).map_err(io)?;
+        let json_len = match fixed.get(12..16) {
+            Some(b) => u32::from_le_bytes(b.try_into().expect("4 bytes")) as u64,
+            None => 0,
+        };
+        let head = read_at(&file, 0, (20 + json_len).min(file_len) as usize).map_err(io)?;
+        let (header, at) = parse_header(&head).map_err(bad)?;
+        let entries = (0..header.levels())
+            .map(|l| {
+                let [nx, ny] = header.tiles_of(l);
+                nx as u64 * ny as u64
+            })
+            .try_fold(0u64, |a, n| a.checked_add(n));
+        let index_end = entries
+            .and_then(|n| n.checked_mul(16))
+            .and_then(|b| b.checked_add(at as u64))
+            .filter(|&end| end <= file_len);
+        // Past the file, parse_index itself says why, from what is there.
+        let prefix = match index_end {
+            Some(end) => read_at(&file, 0, end as usize).map_err(io)?,
+            None => head,
+        };
+        let (index, end) = parse_index(&prefix, &header, at, file_len).map_err(bad)?;
+        let reader = PackReader {
+            path: path.to_path_buf(),
+            file,
+            quant: (0..header.levels())
+                .map(|l| header.level_quant(l).expect("a level of the header"))
+                .collect(),
+            header,
+            index,
+        };
+        if let Err(r) = check_end(end, file_len) {
             // A length that lies shows as a tile whose bytes do not match
             // its checksum: name it if so (reading every tile, but only on
             // this error path).
-            for (l, entries) in index.iter().enumerate() {
-                let nx = header.tiles_of(l)[0];
+            for (l, entries) in reader.index.iter().enumerate() {
+                let nx = reader.header.tiles_of(l)[0];
                 for (t, &e) in entries.iter().enumerate() {
-                    tile_bytes(&map, e, || tile_name(l, t, nx)).map_err(bad)?;
+                    reader.tile(e, || tile_name(l, t, nx)).map_err(bad)?;
                 }
             }
             return Err(bad(r));
         }
-        huge::drop_mapped(&map, 0..end as usize);
-        let quant = (0..header.levels())
-            .map(|l| header.level_quant(l).expect("a level of the header"))
-            .collect();
-        Ok(PackReader {
-            path: path.to_path_buf(),
-            map,
-            header,
-            index,
-            quant,
-        })
+        Ok(reader)
     }
 
     /// The pack's header.
     pub fn header(&self) -> &Header {
         &self.header
+    }
+
+    /// The bytes of `e`, checked against its CRC (its range lies in the
+    /// file: the index was checked against the file's length).
+    fn tile(&self, e: Entry, name: impl Fn() -> String) -> std::result::Result<Vec<u8>, String> {
+        let bytes = read_at(&self.file, e.offset, e.len as usize)
+            .map_err(|err| format!("{}: cannot be read ({err})", name()))?;
+        if crc32fast::hash(&bytes) != e.crc {
+            return Err(format!(
+                "{}: checksum mismatch (the tile is damaged)",
+                name()
+            ));
+        }
+        Ok(bytes)
     }
 }
 
@@ -118,17 +168,11 @@ impl TileSource for PackReader {
         if tx >= nx || ty >= ny {
             return Err(format!("{}: outside the level's {nx} × {ny} tiles", name()));
         }
-        let e = self.index[l][ty * nx + tx];
-        let bytes = tile_bytes(&self.map, e, name)?;
+        let bytes = self.tile(self.index[l][ty * nx + tx], name)?;
         let [w, h] = self.header.level_size(l);
         let rect = tile_rect(w, h, self.header.tile, tx, ty);
         let c = (l + 1 < self.header.levels()).then_some(coarse);
-        let out = codec::decode_tile(bytes, c, self.quant[l], self.header.level_range(l), rect)
-            .map_err(|r| format!("{}: {r}", name()));
-        huge::drop_mapped(
-            &self.map,
-            e.offset as usize..(e.offset + e.len as u64) as usize,
-        );
-        out
+        codec::decode_tile(&bytes, c, self.quant[l], self.header.level_range(l), rect)
+            .map_err(|r| format!("{}: {r}", name()))
     }
 }

@@ -713,10 +713,33 @@ fn release_runs(lv: &mut PyramidLevel, tiles: &Tiles, gone: &[[usize; 2]]) {
         .collect();
     runs.sort_unstable();
     runs.dedup();
-    let w = lv.width;
+    let (w, h) = (lv.width, lv.height);
+    let empty = |j: usize| {
+        tiles.done[j * tiles.nx..(j + 1) * tiles.nx]
+            .iter()
+            .all(|&d| !d)
+    };
     for (j, a, b) in runs {
+        if (a, b) == (0, tiles.nx) {
+            // A whole row of tiles is one contiguous span: released as
+            // one, with the empty rows of tiles beside it, so the pages
+            // that straddle one sample row's end and the next one's start
+            // go back too (row by row, each such page is partly outside
+            // every row's slice, and a flight's leftovers grew with the
+            // rows of tiles it had passed over).
+            let top = if j > 0 && empty(j - 1) { j - 1 } else { j };
+            let bottom = if j + 1 < tiles.ny && empty(j + 1) {
+                j + 2
+            } else {
+                j + 1
+            };
+            let span = top * side * w..(bottom * side).min(h) * w;
+            huge::release(&mut lv.data[span.clone()]);
+            huge::release(&mut lv.nodata[span]);
+            continue;
+        }
         let (x0, x1) = (a * side, (b * side).min(w));
-        for y in j * side..((j + 1) * side).min(lv.height) {
+        for y in j * side..((j + 1) * side).min(h) {
             huge::release(&mut lv.data[y * w + x0..y * w + x1]);
             huge::release(&mut lv.nodata[y * w + x0..y * w + x1]);
         }
