@@ -14,7 +14,7 @@
 
 mod common;
 
-use common::fuzz::{edit_json, mutate, mutate_text, Rng};
+use common::fuzz::{cli_exits, edit_json, mutate, mutate_text, Rng};
 use common::packs::pack_once;
 use serde_json::Value;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -576,24 +576,6 @@ const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("check-gpu", 71),
     ("export", 94),
 ];
-
-/// `terraclip ARGS`: an exit with a code, never a signal; a failure that
-/// names `file`, without a panic (a comparison that fails is an exit of 1
-/// with its report, not an error: it need not name the file).
-fn cli_exits(args: &[&std::ffi::OsStr], file: &str) -> Result<(), String> {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    match out.status.code() {
-        None => Err(format!("killed by a signal: {:?}", out.status)),
-        Some(0) => Ok(()),
-        Some(_) if err.contains("panicked") => Err(format!("panicked: {err}")),
-        Some(_) if err.contains(file) || err.contains("does not match") => Ok(()),
-        Some(c) => Err(format!("exit {c} naming no {file}: {err}")),
-    }
-}
 
 /// `terraclip merge` of the two parts written to files: an exit with a
 /// code, never a signal, and a failure that names a part or the parts.

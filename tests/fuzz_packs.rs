@@ -20,12 +20,11 @@
 
 mod common;
 
-use common::fuzz::{edit_json, mutate, mutate_text, Rng};
+use common::fuzz::{cli_exits, edit_json, mutate, mutate_text, Rng};
 use common::packs::{pack_once, Parts};
 
 use std::panic::catch_unwind;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 use terraclip::pack::{file, Lattice, Packed, Predictor};
 use terraclip::pyramid::{Pyramid, PyramidLevel};
@@ -161,22 +160,6 @@ fn stages(p: &Path) -> Result<[bool; 4], String> {
     .map_err(|_| format!("panic on {}", p.display()))
 }
 
-/// `terraclip ARGS` must exit with a code, never a signal, and a failure
-/// must name the case's file without a panic.
-fn cli(args: &[&std::ffi::OsStr], file: &str) -> Result<(), String> {
-    let out = Command::new(env!("CARGO_BIN_EXE_terraclip"))
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    match out.status.code() {
-        None => Err(format!("{args:?} killed by a signal: {:?}", out.status)),
-        Some(0) => Ok(()),
-        Some(_) if err.contains(file) && !err.contains("panicked") => Ok(()),
-        Some(c) => Err(format!("{args:?} exit {c}: {err}")),
-    }
-}
-
 /// Cases per seed.
 const CASES: usize = 1000;
 
@@ -232,7 +215,7 @@ fn packs_with_their_checksums_made_right_reach_every_stage() {
                         out.as_os_str(),
                     ],
                 ] {
-                    if let Err(e) = cli(&args, "case.tcz") {
+                    if let Err(e) = cli_exits(&args, "case.tcz") {
                         failures.push(format!("{name} case {i}: {e}"));
                     }
                 }

@@ -7,6 +7,16 @@ use terraclip::scene::Scene;
 use terraclip::studies::scaling::{self, Options};
 use terraclip::terrain::procedural::Procedural;
 
+/// The JSON a `terraclip … --json` run printed, which must have succeeded.
+fn ok_json(out: std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 /// The default scene over a procedural `size`² map, eye over its centre.
 fn scene(size: usize, lod: &str) -> Scene {
     let mut s = Scene::default_scene();
@@ -309,12 +319,7 @@ fn peak_memory_is_under_twice_the_map_and_pyramid() {
         ])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = ok_json(out);
     let m = &v["memory"];
     let (peak, map, pyramid) = (
         m["peak_rss_bytes"].as_f64().unwrap(),
@@ -369,13 +374,7 @@ fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
             ])
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        v["peak_rss_bytes"].as_f64().unwrap()
+        ok_json(out)["peak_rss_bytes"].as_f64().unwrap()
     };
     let base = peak(65, 1);
     let mib = (1u64 << 20) as f64;
@@ -423,12 +422,7 @@ fn a_flight_over_a_pack_holds_what_its_windows_need() {
             .args(args)
             .output()
             .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice(&out.stdout).unwrap()
+        ok_json(out)
     };
     let peak = |side: usize, frames: usize| -> f64 {
         let (src, pack, scene) = (

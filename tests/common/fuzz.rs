@@ -238,3 +238,22 @@ fn edit_node(rng: &mut Rng, v: &mut Value) {
         Value::Null => *v = json!(0),
     }
 }
+
+/// `terraclip ARGS` (the binary of the test target being built): an exit
+/// with a code, never a signal; a failure that names `file`, without a
+/// panic (a comparison that fails is an exit of 1
+/// with its report, not an error: it need not name the file).
+pub fn cli_exits(args: &[&std::ffi::OsStr], file: &str) -> Result<(), String> {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    match out.status.code() {
+        None => Err(format!("killed by a signal: {:?}", out.status)),
+        Some(0) => Ok(()),
+        Some(_) if err.contains("panicked") => Err(format!("panicked: {err}")),
+        Some(_) if err.contains(file) || err.contains("does not match") => Ok(()),
+        Some(c) => Err(format!("exit {c} naming no {file}: {err}")),
+    }
+}
