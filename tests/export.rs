@@ -193,7 +193,7 @@ fn an_export_of_a_path_holds_a_folder_per_frame() {
     let w = export::scene(&scene, "morph-on", None, 3, 37.0, &dir).unwrap();
     assert_eq!(w.frames.len(), 3);
     // The folder names its frames rather than reading as one.
-    refused(&dir, "frame-0000", "holds 3 frames");
+    refused(&dir, "frame-0000", "lists 3 frame folders");
     let one = tmp("path-one");
     export::scene(&scene, "morph-on", None, 1, 37.0, &one).unwrap();
     let first = export::read(&one).unwrap();

@@ -229,6 +229,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("pack", 2),
     ("upsampled pack", 0),
     ("export", 189),
+    ("export manifest", 5),
     ("compare", 49),
     ("merge cracks", 21),
     ("merge fly", 22),
@@ -828,6 +829,55 @@ fn ten_thousand_malformed_inputs_never_panic() {
         reexport(&case, name, &good);
         cases += 1;
     }
+    // The manifest itself (300, a generator of its own): edited as a
+    // JSON tree, or a listed name made `..`-relative or absolute, an entry
+    // repeated or dropped, frame folders claimed (one, or outside).
+    let mut man_rng = Rng(0x3A_41F3_5EED_0001);
+    let good_manifest: Value =
+        serde_json::from_slice(&std::fs::read(case.join("manifest.json")).unwrap()).unwrap();
+    for i in 0..300 {
+        let mut m = good_manifest.clone();
+        let files = m["files"].as_array().unwrap().len();
+        let k = man_rng.below(files);
+        match man_rng.below(7) {
+            0 => edit_json(&mut man_rng, &mut m),
+            1 => {
+                let n = m["files"][k]["name"].as_str().unwrap().to_string();
+                m["files"][k]["name"] = serde_json::json!(format!("../{n}"));
+            }
+            2 => m["files"][k]["name"] = serde_json::json!("/etc/hostname"),
+            3 => {
+                let e = m["files"][k].clone();
+                m["files"].as_array_mut().unwrap().push(e);
+            }
+            4 => {
+                m["files"].as_array_mut().unwrap().remove(k);
+            }
+            5 => m["frames"] = serde_json::json!(["frame-0000"]),
+            _ => m["frames"] = serde_json::json!(["../outside"]),
+        }
+        std::fs::write(case.join("manifest.json"), serde_json::to_vec(&m).unwrap()).unwrap();
+        record("export manifest", export_once(&case, "manifest.json"));
+        if i % 20 == 0 {
+            cli_cases += 1;
+            let image = seed.join("colour.png");
+            let args = [
+                "compare".as_ref(),
+                case.as_os_str(),
+                "--image".as_ref(),
+                image.as_os_str(),
+            ];
+            if let Err(e) = cli_exits(&args, "export-case") {
+                cli_failures.push(format!("export manifest case {i}: {e}"));
+            }
+        }
+        cases += 1;
+    }
+    std::fs::write(
+        case.join("manifest.json"),
+        serde_json::to_vec(&good_manifest).unwrap(),
+    )
+    .unwrap();
     let (theirs, theirs_depth) = (d.join("theirs.png"), d.join("theirs-depth.f32"));
     let theirs_exr = d.join("theirs-depth.exr");
     let png = std::fs::read(seed.join("colour.png")).unwrap();
@@ -967,6 +1017,6 @@ fn ten_thousand_malformed_inputs_never_panic() {
     println!("merge reached: {reached:?}");
     assert_eq!(reached, EXPECTED_MERGED, "cases reaching merge per kind");
     assert_eq!(merge_cli, 6 * 20);
-    assert_eq!(cli_cases, 30 + 50 + 30);
+    assert_eq!(cli_cases, 30 + 50 + 15 + 30);
     assert!(cli_failures.is_empty(), "{cli_failures:?}");
 }

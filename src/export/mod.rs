@@ -588,6 +588,18 @@ fn open_manifest(dir: &Path) -> Result<Manifest> {
             format!("lists '{bad}', which is not a path inside the export's folder"),
         ));
     }
+    // A name listed twice may carry two hashes, and `merge --dir` would
+    // write it twice: the manifest is damaged.
+    let mut seen = std::collections::HashSet::new();
+    if let Some(twice) = manifest
+        .files
+        .iter()
+        .map(|e| &e.name)
+        .chain(&manifest.frames)
+        .find(|n| !seen.insert(*n))
+    {
+        return Err(Error::file(&mpath, format!("lists '{twice}' twice")));
+    }
     Ok(manifest)
 }
 
@@ -663,10 +675,11 @@ fn channel<'a>(path: &Path, l: &'a FloatLayer, name: &str) -> Result<&'a [f32]> 
 pub fn read(dir: &Path) -> Result<Exported> {
     let manifest = open_manifest(dir)?;
     if let Some(first) = manifest.frames.first() {
+        // The manifest is what says so: named, so that a damaged one is.
         return Err(Error::file(
-            dir,
+            dir.join("manifest.json"),
             format!(
-                "holds {} frames; name one of them, such as {}",
+                "lists {} frame folders (an export of a path); name one of them, such as {}",
                 manifest.frames.len(),
                 dir.join(first).display()
             ),
