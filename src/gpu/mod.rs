@@ -68,17 +68,29 @@ pub struct TexelCheck {
     pub checked: u64,
     /// Those whose bits differ.
     pub differ: u64,
+    /// Of those, heights (the rest are slope components): a slope is a
+    /// difference of heights times a scale, so slopes alone differing
+    /// points at how the GPU evaluates that product, heights at the
+    /// synthesis or the residuals.
+    pub heights_differ: u64,
     /// The largest difference in units in the last place.
     pub max_ulp: u64,
+    /// The largest among heights.
+    pub heights_max_ulp: u64,
 }
 
 impl TexelCheck {
-    fn add(&mut self, cpu: &[f32], gpu: &[f32]) {
+    fn add(&mut self, cpu: &[f32], gpu: &[f32], heights: bool) {
         for (&a, &b) in cpu.iter().zip(gpu) {
             self.checked += 1;
             if a.to_bits() != b.to_bits() {
+                let ulp = crate::check::compare::ulp_distance(a, b);
                 self.differ += 1;
-                self.max_ulp = self.max_ulp.max(crate::check::compare::ulp_distance(a, b));
+                self.max_ulp = self.max_ulp.max(ulp);
+                if heights {
+                    self.heights_differ += 1;
+                    self.heights_max_ulp = self.heights_max_ulp.max(ulp);
+                }
             }
         }
     }
@@ -87,7 +99,9 @@ impl TexelCheck {
     pub fn merge(&mut self, o: &TexelCheck) {
         self.checked += o.checked;
         self.differ += o.differ;
+        self.heights_differ += o.heights_differ;
         self.max_ulp = self.max_ulp.max(o.max_ulp);
+        self.heights_max_ulp = self.heights_max_ulp.max(o.heights_max_ulp);
     }
 }
 
@@ -298,10 +312,10 @@ impl GpuRenderer {
                 continue;
             }
             let gpu = &heights[l * n * n..(l + 1) * n * n];
-            c.add(lv.heights.texels(), gpu);
+            c.add(lv.heights.texels(), gpu, true);
             if let (Some(s), Some(cpu)) = (&slopes, textures::slopes(cm, world, l, &all)) {
                 let cpu: Vec<f32> = cpu.iter().flatten().copied().collect();
-                c.add(&cpu, &s[2 * l * n * n..2 * (l + 1) * n * n]);
+                c.add(&cpu, &s[2 * l * n * n..2 * (l + 1) * n * n], false);
             }
         }
         Ok(c)
