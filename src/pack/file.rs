@@ -334,42 +334,19 @@ pub(crate) fn parse_index(
     mut at: usize,
     file_len: u64,
 ) -> std::result::Result<(Vec<Vec<Entry>>, u64), String> {
-    // The header's sizes say how many entries follow; the file must hold
-    // them before anything is sized from them (a forged header can claim
-    // 2^40 tiles in a file of 2 KB).
-    let counts: Vec<usize> = header
-        .levels
-        .iter()
-        .map(|s| s.width.div_ceil(header.tile) * s.height.div_ceil(header.tile))
-        .collect();
-    let entries = counts
-        .iter()
-        .try_fold(0u64, |a, &n| a.checked_add(n as u64));
-    let room = file_len.saturating_sub(at as u64);
-    match entries.and_then(|n| n.checked_mul(ENTRY as u64)) {
-        Some(need) if need <= room => {}
-        _ => {
-            return Err(format!(
-                "index: the header's {} levels of {}² tiles need {} entries of {ENTRY} bytes, \
-                 more than the {room} bytes after the header",
-                header.levels.len(),
-                header.tile,
-                entries.map_or("over 2^64".into(), |n| n.to_string())
-            ))
-        }
-    }
+    let mut next = index_end(header, at, file_len)?;
     let mut out = Vec::with_capacity(header.levels.len());
     let mut total = 0u64;
-    // Tiles follow the index in its order, each where the one before ends:
-    // an entry elsewhere overlaps another tile or leaves unread bytes.
-    let mut next = (at + ENTRY * counts.iter().sum::<usize>()) as u64;
+    // Tiles follow the index in its order, each where the one before ends
+    // (the first where the index ends): an entry elsewhere overlaps
+    // another tile or leaves unread bytes.
     let mut prev = None;
     for (l, spec) in header.levels.iter().enumerate() {
         let (nx, ny) = (
             spec.width.div_ceil(header.tile),
             spec.height.div_ceil(header.tile),
         );
-        let mut entries = Vec::with_capacity(counts[l]);
+        let mut entries = Vec::with_capacity(nx * ny);
         for t in 0..nx * ny {
             let entry = bytes
                 .get(at..at + ENTRY)
@@ -417,6 +394,49 @@ pub(crate) fn parse_index(
     Ok((out, total + at as u64))
 }
 
+/// Where the index after a header ending at `at` ends, checked to lie in
+/// a file of `file_len` bytes: the header's sizes say how many entries
+/// follow, and the file must hold them before anything is sized from them
+/// (a forged header can claim 2^40 tiles in a file of 2 KB).
+pub(crate) fn index_end(
+    header: &Header,
+    at: usize,
+    file_len: u64,
+) -> std::result::Result<u64, String> {
+    let entries = (0..header.levels())
+        .map(|l| {
+            let [nx, ny] = header.tiles_of(l);
+            nx as u64 * ny as u64
+        })
+        .try_fold(0u64, |a, n| a.checked_add(n));
+    let room = file_len.saturating_sub(at as u64);
+    match entries.and_then(|n| n.checked_mul(ENTRY as u64)) {
+        Some(need) if need <= room => Ok(at as u64 + need),
+        _ => Err(format!(
+            "index: the header's {} levels of {}² tiles need {} entries of {ENTRY} bytes, \
+             more than the {room} bytes after the header",
+            header.levels.len(),
+            header.tile,
+            entries.map_or("over 2^64".into(), |n| n.to_string())
+        )),
+    }
+}
+
+/// `tile`, the bytes of entry `e`, checked against its CRC.
+pub(crate) fn checked_tile(
+    tile: &[u8],
+    e: Entry,
+    name: impl Fn() -> String,
+) -> std::result::Result<&[u8], String> {
+    if crc32fast::hash(tile) != e.crc {
+        return Err(format!(
+            "{}: checksum mismatch (the tile is damaged)",
+            name()
+        ));
+    }
+    Ok(tile)
+}
+
 /// The tiles end the file: anything after them is damage, not data.
 pub(crate) fn check_end(end: u64, file_len: u64) -> std::result::Result<(), String> {
     if end != file_len {
@@ -436,13 +456,7 @@ pub(crate) fn tile_bytes(
     let tile = bytes
         .get(e.offset as usize..e.offset as usize + e.len as usize)
         .ok_or_else(|| format!("{}: the tile runs past the end of the file", name()))?;
-    if crc32fast::hash(tile) != e.crc {
-        return Err(format!(
-            "{}: checksum mismatch (the tile is damaged)",
-            name()
-        ));
-    }
-    Ok(tile)
+    checked_tile(tile, e, name)
 }
 
 fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {

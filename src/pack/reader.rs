@@ -12,7 +12,9 @@
 //! pack in 1,200 steps). Read pages stay in the page cache, outside it.
 
 use super::codec::{self, coarse_rows, tile_rect, Quant};
-use super::file::{check_end, parse_header, parse_index, tile_name, Entry, Header};
+use super::file::{
+    check_end, checked_tile, index_end, parse_header, parse_index, tile_name, Entry, Header,
+};
 use crate::error::{Error, Result};
 use crate::pyramid::{PyramidLevel, TileSource};
 use std::fs::File;
@@ -54,21 +56,8 @@ impl PackReader {
         };
         let head = read_at(&file, 0, (20 + json_len).min(file_len) as usize).map_err(io)?;
         let (header, at) = parse_header(&head).map_err(bad)?;
-        let entries = (0..header.levels())
-            .map(|l| {
-                let [nx, ny] = header.tiles_of(l);
-                nx as u64 * ny as u64
-            })
-            .try_fold(0u64, |a, n| a.checked_add(n));
-        let index_end = entries
-            .and_then(|n| n.checked_mul(16))
-            .and_then(|b| b.checked_add(at as u64))
-            .filter(|&end| end <= file_len);
-        // Past the file, parse_index itself says why, from what is there.
-        let prefix = match index_end {
-            Some(end) => read_at(&file, 0, end as usize).map_err(io)?,
-            None => head,
-        };
+        let index_end = index_end(&header, at, file_len).map_err(bad)?;
+        let prefix = read_at(&file, 0, index_end as usize).map_err(io)?;
         let (index, end) = parse_index(&prefix, &header, at, file_len).map_err(bad)?;
         let reader = PackReader {
             path: path.to_path_buf(),
@@ -104,12 +93,7 @@ impl PackReader {
     fn tile(&self, e: Entry, name: impl Fn() -> String) -> std::result::Result<Vec<u8>, String> {
         let bytes = read_at(&self.file, e.offset, e.len as usize)
             .map_err(|err| format!("{}: cannot be read ({err})", name()))?;
-        if crc32fast::hash(&bytes) != e.crc {
-            return Err(format!(
-                "{}: checksum mismatch (the tile is damaged)",
-                name()
-            ));
-        }
+        checked_tile(&bytes, e, name)?;
         Ok(bytes)
     }
 }
