@@ -32,7 +32,7 @@ fn all_modes(e: &export::Exported, img: &Image, what: &str) -> Vec<outside::Outc
     [Mode::Exact, Mode::Tiered, Mode::Flip]
         .iter()
         .map(|&m| {
-            let o = outside::compare(e, img, m, None).unwrap();
+            let o = outside::compare(e, img, &outside::Options::new(m), None).unwrap();
             eprintln!(
                 "{what} {m}: pass {} colour {} depth {} tiers {:?} flip {:?}",
                 o.pass, o.colour_px_differ, o.depth_px_differ, o.tiers, o.flip
@@ -158,10 +158,11 @@ fn a_jpeg_copy_passes_flip_and_fails_exact() {
 
 /// An image one 8-bit step off everywhere passes tiered and flip; two
 /// steps off fails both: FLIP's thresholds sit where tiered's do. Over
-/// every golden, as `outside::FLIP_MEAN` and `FLIP_TAIL_MAX` state it:
-/// one step off has a mean FLIP of 0.0336–0.0424, two steps
-/// 0.0549–0.0695, and neither passes 0.1192 at the 99.99th percentile
-/// (measured 2026-12-04; the thresholds 0.05 and 0.15 lie between).
+/// every golden, as `outside::FLIP_MEAN` and `FLIP_TAIL_MAX` state it,
+/// over the pixels outside the tie band (what flip mode judges): one step
+/// off has a mean FLIP of 0.0335–0.0421, two steps 0.0548–0.0691, and
+/// neither passes 0.1193 at the 99.99th percentile (measured 2026-12-04;
+/// the thresholds 0.05 and 0.15 lie between).
 #[test]
 fn flip_passes_one_step_and_fails_two() {
     let goldens = terraclip::check::golden::scenes(Path::new("golden")).unwrap();
@@ -199,9 +200,9 @@ fn flip_passes_one_step_and_fails_two() {
         means[0], means[1]
     );
     let within = |[lo, hi]: [f32; 2], [a, b]: [f32; 2]| lo >= a && hi <= b;
-    assert!(within(means[0], [0.0336, 0.0424]), "{means:?}");
-    assert!(within(means[1], [0.0549, 0.0695]), "{means:?}");
-    assert!(tails[1][1].max(tails[0][1]) <= 0.1192, "{tails:?}");
+    assert!(within(means[0], [0.0335, 0.0421]), "{means:?}");
+    assert!(within(means[1], [0.0548, 0.0691]), "{means:?}");
+    assert!(tails[1][1].max(tails[0][1]) <= 0.1193, "{tails:?}");
 }
 
 fn scene_camera(name: &str) -> terraclip::scene::camera::Camera {
@@ -228,7 +229,14 @@ fn depth_of_another_convention_is_named() {
     let run = |name: &str, d: Vec<f32>| {
         let p = dir.join(name);
         write_depth(&p, &d);
-        outside::run(&e.dir, &png, Some(&p), Mode::Tiered, None).map_err(|e| e.to_string())
+        outside::run(
+            &e.dir,
+            Some(&png),
+            Some(&p),
+            &outside::Options::new(Mode::Tiered),
+            None,
+        )
+        .map_err(|e| e.to_string())
     };
     // Their own depth, as raw f32 and as EXR: passes exact.
     let o = run("same.f32", e.image.depth.clone()).unwrap();
@@ -238,9 +246,9 @@ fn depth_of_another_convention_is_named() {
     );
     let o = outside::run(
         &e.dir,
-        &png,
+        Some(&png),
         Some(&e.dir.join("depth.exr")),
-        Mode::Exact,
+        &outside::Options::new(Mode::Exact),
         None,
     )
     .unwrap();
@@ -286,15 +294,107 @@ fn depth_of_another_convention_is_named() {
         err.contains("metres.f32") && err.contains("outside 0..1"),
         "{err}"
     );
+    // GL's default depth range with a 0..1 projection: 0.5 + 0.5 z.
+    let gl: Vec<f32> = e.image.depth.iter().map(|&z| 0.5 + 0.5 * z).collect();
+    let err = run("gl-range.f32", gl).unwrap_err();
+    assert!(
+        err.contains("gl-range.f32")
+            && err.contains("default depth range")
+            && err.contains("glClipControl"),
+        "{err}"
+    );
+    // Rows bottom first, as glReadPixels returns them.
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let upside_down = |v: &[f32]| -> Vec<f32> {
+        (0..h)
+            .rev()
+            .flat_map(|y| v[y * w..(y + 1) * w].to_vec())
+            .collect()
+    };
+    let err = run("bottom-first.f32", upside_down(&e.image.depth)).unwrap_err();
+    assert!(err.contains("bottom first"), "{err}");
+    // Big-endian floats.
+    let p = dir.join("big-endian.f32");
+    std::fs::write(
+        &p,
+        e.image
+            .depth
+            .iter()
+            .flat_map(|z| z.to_be_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    let err = outside::run(
+        &e.dir,
+        Some(&png),
+        Some(&p),
+        &outside::Options::new(Mode::Tiered),
+        None,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("big-endian.f32") && err.contains("big-endian floats"),
+        "{err}"
+    );
+    // A 24-bit fixed-point buffer read back as float: seen below 0.5,
+    // where a float is finer than the 24-bit grid; near-clip-cliff's
+    // cliff has such depths (jacksboro-oblique's view has none).
+    let cliff = exported("near-clip-cliff");
+    let d24 = |z: f32| ((z as f64 * 16_777_215.0).round() / 16_777_215.0) as f32;
+    let fixed: Vec<f32> = cliff.image.depth.iter().map(|&z| d24(z)).collect();
+    let below = cliff
+        .image
+        .depth
+        .iter()
+        .zip(&fixed)
+        .filter(|(z, f)| **z < 0.5 && z != f)
+        .count();
+    assert!(below >= 16, "{below} pixels below 0.5 differ in D24");
+    let p = dir.join("d24.f32");
+    write_depth(&p, &fixed);
+    let cliff_png = dir.join("cliff.png");
+    std::fs::write(&cliff_png, cliff.image.png().unwrap()).unwrap();
+    let err = outside::run(
+        &cliff.dir,
+        Some(&cliff_png),
+        Some(&p),
+        &outside::Options::new(Mode::Exact),
+        None,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("24-bit depth buffer (D24)"), "{below}: {err}");
+    // A renderer whose depth is off by a few ULP is none of these: it
+    // passes tiered.
+    let near: Vec<f32> = e
+        .image
+        .depth
+        .iter()
+        .map(|&z| {
+            if z < 1.0 {
+                f32::from_bits(z.to_bits() + 3)
+            } else {
+                z
+            }
+        })
+        .collect();
+    assert!(run("three-ulp.f32", near).unwrap().pass);
     // The wrong length, and a format it cannot read.
     let err = run("short.f32", vec![0.5; 7]).unwrap_err();
     assert!(
         err.contains("short.f32") && err.contains("28 bytes"),
         "{err}"
     );
-    let err = outside::run(&e.dir, &png, Some(&png), Mode::Exact, None)
-        .unwrap_err()
-        .to_string();
+    let err = outside::run(
+        &e.dir,
+        Some(&png),
+        Some(&png),
+        &outside::Options::new(Mode::Exact),
+        None,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains(".f32 (raw little-endian) or .exr"), "{err}");
 }
 
@@ -450,7 +550,7 @@ fn depth_exr_channels_are_read_in_their_documented_order() {
         };
         let path = dir.join(format!("{}.exr", channels.join("-")));
         std::fs::write(&path, write(&[layer]).unwrap()).unwrap();
-        match (load_depth(&path, w, h), want) {
+        match (load_depth(&path, w, h, None), want) {
             (Ok(d), Some(c)) => {
                 assert_eq!(d, values(c), "{channels:?}: read another channel than {c}")
             }
@@ -463,5 +563,240 @@ fn depth_exr_channels_are_read_in_their_documented_order() {
             }
             (r, want) => panic!("{channels:?}: {r:?}, wanted {want:?}"),
         }
+    }
+}
+
+/// `frame` as a rasteriser with 4 sub-pixel bits would draw it (Vulkan's
+/// least, SwiftShader's): every vertex with w > 0 moved in window space to
+/// the nearest 1/16 px, its clip z and w kept.
+fn snapped_to_sixteenths(frame: &terraclip::frame::Frame) -> terraclip::frame::Frame {
+    use glam::{DMat4, DVec4};
+    let vp = DMat4::from_cols_array_2d(&frame.uniforms.view_proj.map(|c| c.map(f64::from)));
+    let inv = vp.inverse();
+    let (w, h) = (frame.width as f64, frame.height as f64);
+    let mut out = frame.clone();
+    for p in &mut out.positions {
+        let c = vp * DVec4::new(p[0] as f64, p[1] as f64, p[2] as f64, 1.0);
+        if c.w <= 1e-9 {
+            continue;
+        }
+        let snap = |v: f64| (v * 16.0).round() / 16.0;
+        let x = snap((c.x / c.w + 1.0) / 2.0 * w);
+        let y = snap((1.0 - c.y / c.w) / 2.0 * h);
+        let moved = DVec4::new(
+            (2.0 * x / w - 1.0) * c.w,
+            (1.0 - 2.0 * y / h) * c.w,
+            c.z,
+            c.w,
+        );
+        let q = inv * moved;
+        *p = [(q.x / q.w) as f32, (q.y / q.w) as f32, (q.z / q.w) as f32];
+    }
+    out
+}
+
+/// A renderer with 4 sub-pixel bits differs only by sub-pixel coverage,
+/// and passes tiered on every golden: the tie band holds the edges of
+/// every triangle that could be in front at a pixel, not only of those the
+/// reference drew there (a sliver covers no pixel centre; a triangle a
+/// hair behind another is drawn nowhere). With 8 bits claimed, the same
+/// frames fail: their vertices moved further than 8 bits allow.
+/// Left out:
+/// - `morph-off` draws the cracks between levels that the morph closes,
+///   so its mesh is not watertight, and a crack one pixel wide that moves
+///   by a sixteenth is a "hole", which tolerance mode allows on watertight
+///   meshes only;
+/// - `phong-normal-map` fails on 7 pixels, 0.11–0.22 px from an edge,
+///   inside triangles a fraction of a pixel wide on steep slopes: there a
+///   1/32 px move turns the triangle's depth and normal-map planes enough
+///   to change the colour by 2 steps, which the "same" tier does not
+///   allow for (it bounds depth by the neighbours' steps, and colour by
+///   one step). A bound on interpolation under vertex moves is not
+///   derived yet.
+#[test]
+fn a_four_bit_rasteriser_passes_tiered_and_not_at_eight_bits() {
+    let goldens: Vec<_> = terraclip::check::golden::scenes(Path::new("golden"))
+        .unwrap()
+        .into_iter()
+        .filter(|p| !p.ends_with("morph-off.toml") && !p.ends_with("phong-normal-map.toml"))
+        .collect();
+    assert_eq!(goldens.len(), 13);
+    let (mut fails, mut fails_at_eight) = (vec![], 0);
+    for path in &goldens {
+        let name = &*path.file_stem().unwrap().to_string_lossy();
+        let e = exported(name);
+        let (theirs, _) = draw(
+            &snapped_to_sixteenths(&e.frame),
+            &RenderOptions::default(),
+            &mut Passes::default(),
+        );
+        let mut opts = outside::Options::new(Mode::Tiered);
+        let o = outside::compare(&e, &theirs, &opts, None).unwrap();
+        eprintln!(
+            "{name}: 4 bits: pass {} ({} colour, {} depth px differ, {:?}, band {} px)",
+            o.pass, o.colour_px_differ, o.depth_px_differ, o.tiers, o.band_px
+        );
+        if !o.pass {
+            fails.push(format!("{name}: {:?} {:?}", o.reason, o.failing));
+        }
+        opts.subpixel_bits = 8;
+        let o8 = outside::compare(&e, &theirs, &opts, None).unwrap();
+        eprintln!("{name}: 8 bits: pass {} band {} px", o8.pass, o8.band_px);
+        assert!(o8.band_px < o.band_px, "{name}");
+        fails_at_eight += usize::from(!o8.pass);
+    }
+    assert!(fails.is_empty(), "{fails:#?}");
+    assert!(fails_at_eight >= goldens.len() / 2, "{fails_at_eight}");
+}
+
+/// A colour image bottom row first, an EXR with the depth in another
+/// channel than the one read first, an EXR with the reference's layout
+/// beside another layer with a `Z`, and `--depth-channel`.
+#[test]
+fn colour_rows_and_exr_channels_are_named() {
+    use terraclip::export::exr::{write, FloatLayer};
+    let dir = tmp("exr-channels");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = exported("jacksboro-oblique");
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let png = dir.join("theirs.png");
+    std::fs::write(&png, e.image.png().unwrap()).unwrap();
+    let opts = |c: Option<&str>| outside::Options {
+        depth_channel: c.map(str::to_string),
+        ..outside::Options::new(Mode::Exact)
+    };
+    // Colour bottom row first.
+    let mut flipped = e.image.clone();
+    for y in 0..h {
+        let src = (h - 1 - y) * w * 4;
+        flipped.rgba[y * w * 4..(y + 1) * w * 4].copy_from_slice(&e.image.rgba[src..src + w * 4]);
+    }
+    let upside = dir.join("upside-down.png");
+    std::fs::write(&upside, flipped.png().unwrap()).unwrap();
+    let err = outside::run(&e.dir, Some(&upside), None, &opts(None), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("upside-down.png") && err.contains("bottom first"),
+        "{err}"
+    );
+    // RGB with the depth in G: R is read first, and G is named.
+    let layer = |name: &str, chans: &[(&str, Vec<f32>)]| FloatLayer {
+        name: name.into(),
+        width: w,
+        height: h,
+        channels: chans
+            .iter()
+            .map(|(c, v)| (c.to_string(), v.clone()))
+            .collect(),
+    };
+    let zeros = vec![0.0f32; w * h];
+    let rgb = dir.join("rgb.exr");
+    let depth = e.image.depth.clone();
+    std::fs::write(
+        &rgb,
+        write(&[layer(
+            "",
+            &[
+                ("R", zeros.clone()),
+                ("G", depth.clone()),
+                ("B", zeros.clone()),
+            ],
+        )])
+        .unwrap(),
+    )
+    .unwrap();
+    let err = outside::run(&e.dir, Some(&png), Some(&rgb), &opts(None), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("channel R is not the depth") && err.contains("--depth-channel G"),
+        "{err}"
+    );
+    let o = outside::run(&e.dir, Some(&png), Some(&rgb), &opts(Some("G")), None).unwrap();
+    assert!(o.pass && o.depth_compared, "{o:?}");
+    // The reference's layout (layer depth, channel Z) after another layer
+    // with a Z: the depth layer is read.
+    let two = dir.join("two-layers.exr");
+    std::fs::write(
+        &two,
+        write(&[
+            layer("normal", &[("X", zeros.clone()), ("Z", zeros.clone())]),
+            layer("depth", &[("Z", depth.clone())]),
+        ])
+        .unwrap(),
+    )
+    .unwrap();
+    let o = outside::run(&e.dir, Some(&png), Some(&two), &opts(None), None).unwrap();
+    assert!(o.pass, "{o:?}");
+    // Z is then ambiguous by name, not as layer.channel.
+    let err = outside::run(&e.dir, Some(&png), Some(&two), &opts(Some("Z")), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("2 channels are called 'Z'") && err.contains("normal.Z"),
+        "{err}"
+    );
+    let o = outside::run(&e.dir, Some(&png), Some(&two), &opts(Some("depth.Z")), None).unwrap();
+    assert!(o.pass, "{o:?}");
+    let err = outside::run(&e.dir, Some(&png), Some(&two), &opts(Some("W")), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no") && err.contains("channel 'W'") && err.contains("depth.Z"),
+        "{err}"
+    );
+}
+
+/// `--only depth` judges depth alone (no image needed), `--only colour`
+/// colour alone, and the default both.
+#[test]
+fn only_depth_and_only_colour_compare_one_buffer() {
+    let e = exported("level-tint");
+    let mut recoloured = e.image.clone();
+    for v in recoloured.rgba.iter_mut().step_by(4) {
+        *v = v.wrapping_add(40);
+    }
+    let mut deeper = e.image.clone();
+    for z in deeper.depth.iter_mut().filter(|z| **z < 1.0) {
+        *z = f32::from_bits(z.to_bits() + 1000);
+    }
+    let opts = |only| outside::Options {
+        only,
+        ..outside::Options::new(Mode::Exact)
+    };
+    let pass = |img: &Image, only| outside::compare(&e, img, &opts(only), None).unwrap().pass;
+    use outside::Only::{Both, Colour, Depth};
+    assert!(pass(&recoloured, Depth) && !pass(&recoloured, Colour) && !pass(&recoloured, Both));
+    assert!(pass(&deeper, Colour) && !pass(&deeper, Depth) && !pass(&deeper, Both));
+    // Depth alone with no image at all.
+    let dir = tmp("only-depth");
+    std::fs::create_dir_all(&dir).unwrap();
+    let f = dir.join("d.f32");
+    write_depth(&f, &e.image.depth);
+    let o = outside::run(&e.dir, None, Some(&f), &opts(Depth), None).unwrap();
+    assert!(o.pass && o.depth_compared && o.only == Depth, "{o:?}");
+    let err = outside::run(&e.dir, None, Some(&f), &opts(Both), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--image"), "{err}");
+    let no_depth = Image {
+        depth: vec![],
+        ..e.image.clone()
+    };
+    let err = outside::compare(&e, &no_depth, &opts(Depth), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--depth"), "{err}");
+    // Sub-pixel precision out of range.
+    let bits = |b| outside::Options {
+        subpixel_bits: b,
+        ..outside::Options::new(Mode::Tiered)
+    };
+    for b in [3, 9] {
+        let err = outside::compare(&e, &e.image, &bits(b), None)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--subpixel-bits"), "{err}");
     }
 }

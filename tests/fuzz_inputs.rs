@@ -350,7 +350,15 @@ fn compare_once(
     mode: Mode,
 ) -> Result<bool, String> {
     use terraclip::check::outside::run;
-    match catch_unwind(AssertUnwindSafe(|| run(r, image, depth, mode, None))) {
+    match catch_unwind(AssertUnwindSafe(|| {
+        run(
+            r,
+            Some(image),
+            depth,
+            &terraclip::check::outside::Options::new(mode),
+            None,
+        )
+    })) {
         Err(_) => Err(format!("compare panicked on {}", named.display())),
         Ok(Ok(o)) => Ok(o.pass),
         Ok(Err(e)) => {

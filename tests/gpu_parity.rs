@@ -696,7 +696,14 @@ fn lavapipes_image_of_every_golden_passes_compare() {
                 .collect::<Vec<u8>>(),
         )
         .unwrap();
-        let o = outside::run(&dir, &png, Some(&f32s), mode, None).unwrap();
+        let o = outside::run(
+            &dir,
+            Some(&png),
+            Some(&f32s),
+            &outside::Options::new(mode),
+            None,
+        )
+        .unwrap();
         eprintln!(
             "{name}: {} {} colour, {} depth px differ",
             o.mode, o.colour_px_differ, o.depth_px_differ

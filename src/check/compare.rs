@@ -57,45 +57,122 @@ pub const TOLERANCE_SUBPIXEL: f32 = 1.0 / 16.0;
 /// Holes tolerance mode allows: none (derived above).
 pub const TOLERANCE_HOLES: usize = 0;
 
+/// Vulkan's least `subPixelPrecisionBits`, from which the default band and
+/// depth tolerance are derived.
+pub const MIN_SUBPIXEL_BITS: u32 = 4;
+
 /// How far from an edge a pixel centre may lie and still be covered
-/// differently by a conforming implementation: each vertex may sit
-/// 2^-subPixelPrecisionBits px from ours (Vulkan requires at least 4 bits,
-/// 1/16 px) and ours from the exact position by 1/256 px (rule 2), per axis.
+/// differently by a conforming implementation with `bits` of sub-pixel
+/// precision: each vertex may sit 2^-bits px from ours and ours from the
+/// exact position by 1/256 px (rule 2), per axis.
+pub fn tie_distance(bits: u32) -> f64 {
+    (0.5f64.powi(bits as i32) + 1.0 / 256.0) * std::f64::consts::SQRT_2
+}
+
+/// [`tie_distance`] for Vulkan's minimum of 4 bits: 1/16 px.
 pub const TIE_DISTANCE: f64 = (1.0 / 16.0 + 1.0 / 256.0) * std::f64::consts::SQRT_2;
 
-/// The pixels where a conforming GPU may legitimately differ from the CPU
-/// beyond the "same" tier: those whose centre lies within [`TIE_DISTANCE`]
-/// of an edge of a triangle drawn there or at a neighbour (an edge one
-/// pixel over), and with `wire`, within it of the wire's threshold half a
-/// pixel from an edge (a wire tie). This is how the Khronos CTS verifies
-/// rasterisation (`tcuRasterizationVerifier`: pixels within the sub-pixel
-/// precision of an edge may take either value, every other must match);
-/// anywhere else a difference is a defect, however few pixels it has.
+/// [`tie_band_for`] with Vulkan's minimum sub-pixel precision.
 pub fn tie_band(r: &crate::raster::Raster, wire: bool) -> Vec<bool> {
+    tie_band_for(r, wire, MIN_SUBPIXEL_BITS)
+}
+
+/// The pixels where a conforming GPU with `bits` of sub-pixel precision
+/// may legitimately differ from the CPU beyond the "same" tier: those whose
+/// centre lies within [`tie_distance`] of an edge (and with `wire`, of the
+/// wire's threshold half a pixel inside an edge) of
+///
+/// - a triangle drawn there or at a neighbour (the edge's whole line: an
+///   edge one pixel over), or
+/// - any other set-up triangle that could be in front there once its
+///   vertices move by 2^-bits px: a sliver that covers no pixel centre, or
+///   a triangle the reference hides by less than its depth change over
+///   that move plus [`TOLERANCE_DEPTH_ULP`]. Here the distance is to the
+///   edge segment, since nothing of the triangle lies beyond it.
+///
+/// This is how the Khronos CTS verifies rasterisation
+/// (`tcuRasterizationVerifier`: pixels within the sub-pixel precision of
+/// an edge may take either value, every other must match); anywhere else a
+/// difference is a defect, however few pixels it has.
+pub fn tie_band_for(r: &crate::raster::Raster, wire: bool, bits: u32) -> Vec<bool> {
     use crate::raster::NONE;
+    let tie = tie_distance(bits);
+    let half = crate::shade::wireframe::HALF_WIDTH as f64;
+    let near_edge = |d: f64| d <= tie || (wire && (d - half).abs() <= tie);
     let (w, h) = (r.width as usize, r.height as usize);
     let mut band = vec![false; w * h];
     for py in 0..h {
         for px in 0..w {
             let (x0, x1) = (px.saturating_sub(1), (px + 1).min(w - 1));
             let (y0, y1) = (py.saturating_sub(1), (py + 1).min(h - 1));
-            let near = (y0..=y1)
+            band[py * w + px] = (y0..=y1)
                 .flat_map(|ny| (x0..=x1).map(move |nx| ny * w + nx))
                 .filter(|&j| r.prim[j] != NONE)
                 .map(|j| &r.tris[r.prim[j] as usize])
                 .flat_map(|t| t.edges.iter())
                 .any(|e| {
-                    let d =
-                        (e.at(px as i64, py as i64) as f64).abs() / (e.a as f64).hypot(e.b as f64);
-                    d <= TIE_DISTANCE
-                        || (wire
-                            && (d - crate::shade::wireframe::HALF_WIDTH as f64).abs()
-                                <= TIE_DISTANCE)
+                    near_edge(
+                        (e.at(px as i64, py as i64) as f64).abs() / (e.a as f64).hypot(e.b as f64),
+                    )
                 });
-            band[py * w + px] = near;
+        }
+    }
+    let reach = tie + if wire { half } else { 0.0 };
+    let step = 0.5f64.powi(bits as i32);
+    for t in &r.tris {
+        let ends = edge_ends(&t.edges);
+        let slack = (t.z.dadx.abs() as f64 + t.z.dady.abs() as f64) * step;
+        for [p, q] in ends {
+            if !(p[0].is_finite() && p[1].is_finite() && q[0].is_finite() && q[1].is_finite()) {
+                continue;
+            }
+            let lo = |a: f64, b: f64| (a.min(b) - reach).floor().max(0.0) as usize;
+            let hi =
+                |a: f64, b: f64, n: usize| ((a.max(b) + reach).ceil().max(0.0) as usize).min(n - 1);
+            for py in lo(p[1], q[1])..=hi(p[1], q[1], h) {
+                for px in lo(p[0], q[0])..=hi(p[0], q[0], w) {
+                    let i = py * w + px;
+                    if band[i] || !near_edge(segment_distance([px as f64, py as f64], p, q)) {
+                        continue;
+                    }
+                    let z = t.z.eval(px as f32, py as f32) as f64;
+                    let limit = r.depth[i] as f64 + slack;
+                    // TOLERANCE_DEPTH_ULP ULPs of the reference's depth.
+                    let ulps = f64::from(TOLERANCE_DEPTH_ULP) * f64::from(r.depth[i]) / 8_388_608.0;
+                    // A plane that is not finite could be anywhere.
+                    if z <= limit + ulps || !z.is_finite() {
+                        band[i] = true;
+                    }
+                }
+            }
         }
     }
     band
+}
+
+/// Each edge's two ends in pixel-index coordinates (pixel (x, y)'s centre
+/// at (x, y), as [`crate::raster::setup::Edge::at`] takes them): where its
+/// line meets the other two edges' lines.
+pub fn edge_ends(e: &[crate::raster::setup::Edge; 3]) -> [[[f64; 2]; 2]; 3] {
+    let meet = |e: &crate::raster::setup::Edge, f: &crate::raster::setup::Edge| {
+        let (a1, b1, c1) = (e.a as f64, e.b as f64, e.c as f64);
+        let (a2, b2, c2) = (f.a as f64, f.b as f64, f.c as f64);
+        let det = a1 * b2 - a2 * b1;
+        [(b1 * c2 - b2 * c1) / det, (a2 * c1 - a1 * c2) / det]
+    };
+    [0, 1, 2].map(|k| [meet(&e[k], &e[(k + 1) % 3]), meet(&e[k], &e[(k + 2) % 3])])
+}
+
+/// The distance from point `c` to the segment from `p` to `q`.
+pub fn segment_distance(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
+    let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
+    let len2 = dx * dx + dy * dy;
+    let t = if len2 > 0.0 {
+        (((c[0] - p[0]) * dx + (c[1] - p[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (c[0] - p[0] - t * dx).hypot(c[1] - p[1] - t * dy)
 }
 
 /// How two images differ.
@@ -208,6 +285,18 @@ impl Difference {
     /// [`Difference::within`], and each pixel's [`Tier`] (empty when the
     /// images are not comparable): what `compare`'s error mask shows.
     pub fn tiers(a: &Image, b: &Image, band: Option<&[bool]>) -> (Difference, Vec<Tier>) {
+        Difference::tiers_with(a, b, band, TOLERANCE_SUBPIXEL)
+    }
+
+    /// [`Difference::tiers`] for a renderer whose vertices may move by
+    /// `subpixel` px rather than Vulkan's least precision, 1/16 px: the
+    /// depth change over that move still counts as "same".
+    pub fn tiers_with(
+        a: &Image,
+        b: &Image,
+        band: Option<&[bool]>,
+        subpixel: f32,
+    ) -> (Difference, Vec<Tier>) {
         let mut d = Difference::default();
         let (w, h) = (a.width as usize, a.height as usize);
         let px = w * h;
@@ -258,9 +347,10 @@ impl Difference {
             g
         };
         // The same pixel: colour within a step, depth within a few ULP, or
-        // within the depth change over 1/16 px, the coarsest vertex snap
-        // Vulkan allows (subPixelPrecisionBits ≥ 4): a steep wall at the near
-        // plane changes depth by a quarter per pixel.
+        // within the depth change over `subpixel` px (1/16 px, the coarsest
+        // vertex snap Vulkan allows, subPixelPrecisionBits ≥ 4, unless the
+        // caller knows better): a steep wall at the near plane changes
+        // depth by a quarter per pixel.
         let same = |i: usize, px: usize, py: usize| {
             if channel_diff(&a.rgba[4 * i..4 * i + 4], &b.rgba[4 * i..4 * i + 4])
                 > TOLERANCE_CHANNEL
@@ -271,7 +361,7 @@ impl Difference {
                 return true;
             }
             let slope = steep(a, px, py).max(steep(b, px, py));
-            (a.depth[i] - b.depth[i]).abs() <= slope * TOLERANCE_SUBPIXEL
+            (a.depth[i] - b.depth[i]).abs() <= slope * subpixel
         };
         // Within the range `y` spans over the 3×3 neighbourhood, widened by
         // the tolerance: an edge, wire or threshold one pixel over, and a
