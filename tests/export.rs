@@ -35,6 +35,31 @@ fn every_golden_redrawn_from_its_export_is_the_reference() {
         let w = export_golden(&name, &dir);
         let e = export::read(&dir).unwrap();
         assert_eq!(e.frame.triangle_count(), w.frames[0].triangles, "{name}");
+        // One frame lies in the folder itself, and its summary's hash is
+        // the colour file's.
+        assert_eq!(
+            (w.frames.len(), w.frames[0].folder.as_str()),
+            (1, "."),
+            "{name}"
+        );
+        let png = std::fs::read(dir.join("colour.png")).unwrap();
+        let sha: String =
+            sha2::Digest::finalize(<sha2::Sha256 as sha2::Digest>::new_with_prefix(&png))
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect();
+        assert_eq!(w.frames[0].colour_sha256, sha, "{name}");
+        // frame.json names the sun and the level palette the shading used.
+        assert_eq!(
+            e.info.sun_direction,
+            Scene::load(&p)
+                .unwrap()
+                .shading
+                .sun_direction()
+                .map(|c| c as f32),
+            "{name}"
+        );
+        assert_eq!(e.info.level_palette[3], [0, 130, 200], "{name}");
         let (img, _) = draw(&e.frame, &RenderOptions::default(), &mut Passes::default());
         let differ = img
             .rgba
@@ -182,6 +207,36 @@ fn a_damaged_export_is_an_error_naming_the_file() {
     };
     replace(&d, "colour.png", &small.png().unwrap());
     refused(&d, "colour.png", "2x2");
+    // A manifest naming a file outside the folder, or no file: `merge
+    // --dir` would read and write there. A plain nested name is fine.
+    for (name, ok) in [
+        ("../escape.bin", false),
+        ("/etc/escape.bin", false),
+        ("./escape.bin", false),
+        ("", false),
+        ("sub/inside.bin", true),
+    ] {
+        let d = fresh(&format!("damaged-name-{}", name.len()));
+        let mpath = d.join("manifest.json");
+        let mut m: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+        let mut entry = m["files"][0].clone();
+        entry["name"] = name.into();
+        m["files"].as_array_mut().unwrap().push(entry);
+        std::fs::write(&mpath, serde_json::to_vec(&m).unwrap()).unwrap();
+        match (export::read(&d), ok) {
+            (Err(e), false) => {
+                let e = e.to_string();
+                assert!(
+                    e.contains("manifest.json") && e.contains("not a path inside"),
+                    "{name}: {e}"
+                );
+            }
+            (Err(e), true) => assert!(!e.to_string().contains("not a path inside"), "{name}: {e}"),
+            (Ok(_), true) => {}
+            (Ok(_), false) => panic!("{name}: read"),
+        }
+    }
     // Not a folder at all.
     refused(&good.join("frame.glb"), "frame.glb", "not a folder");
 }

@@ -207,6 +207,15 @@ pub struct FrameFile {
     pub normal_maps: Vec<NormalMapFile>,
     /// The lightmap in `effects.exr`.
     pub lightmap: Option<LightmapFile>,
+    /// The unit vector toward the sun as the shaders take it (f32, x east,
+    /// y north, z up): `shading.sun`'s azimuth and elevation through f64
+    /// sines and cosines, rounded once.
+    #[serde(default)]
+    pub sun_direction: [f32; 3],
+    /// `level-tint`'s albedo: level l's colour is entry l mod 8, each
+    /// channel divided by 255 (linear, as every colour here).
+    #[serde(default)]
+    pub level_palette: Vec<[u8; 3]>,
 }
 
 /// One file's entry in the manifest.
@@ -358,6 +367,8 @@ pub fn files(src: &Source) -> Result<Files> {
                 interpolation: if v.linear { "linear" } else { "perspective" }.into(),
             })
             .collect(),
+        sun_direction: f.params.sun_direction().map(|c| c as f32),
+        level_palette: crate::shade::level_tint::PALETTE.to_vec(),
         levels: res
             .levels
             .iter()
