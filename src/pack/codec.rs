@@ -24,7 +24,7 @@
 //! entropy-decoding it ([`super::predict`]).
 
 use super::model::{self, ESCAPE, K, SCALES};
-use super::predict::{self, Planes};
+use super::predict::{self, Coarse, Planes};
 use crate::pyramid::{PyramidLevel, Rows};
 pub use crate::terrain::Lattice;
 use constriction::stream::model::DefaultContiguousCategoricalEntropyModel;
@@ -206,36 +206,6 @@ impl Quant {
             }
             Quant::Bits => from_ordered(ordered(p as f32) + q).unwrap_or(f32::NAN),
         }
-    }
-}
-
-/// The coarser level a tile is predicted from, read with clamped indices.
-pub trait Coarse: Sync {
-    /// Samples across the level.
-    fn width(&self) -> usize;
-    /// Row `j` clamped to the level's extent, whole.
-    fn row(&self, j: i64) -> &[f32];
-}
-
-impl Coarse for PyramidLevel {
-    fn width(&self) -> usize {
-        self.width
-    }
-    fn row(&self, j: i64) -> &[f32] {
-        let y = j.clamp(0, self.height as i64 - 1) as usize;
-        &self.data[y * self.width..][..self.width]
-    }
-}
-
-/// A band of the coarser level must hold every row the clamped indices
-/// reach: [`coarse_rows`] of the tiles it predicts.
-impl Coarse for Rows<'_> {
-    fn width(&self) -> usize {
-        self.width
-    }
-    fn row(&self, j: i64) -> &[f32] {
-        let y = j.clamp(0, self.height as i64 - 1) as usize;
-        &self.data[self.index(0, y)..][..self.width]
     }
 }
 

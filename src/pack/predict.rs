@@ -14,7 +14,37 @@
 //! operations, so encoder and decoder, on any machine, compute the same
 //! predictions and contexts bit for bit.
 
-use super::codec::Coarse;
+use crate::pyramid::{PyramidLevel, Rows};
+
+/// The coarser level a tile is predicted from, read with clamped indices.
+pub trait Coarse: Sync {
+    /// Samples across the level.
+    fn width(&self) -> usize;
+    /// Row `j` clamped to the level's extent, whole.
+    fn row(&self, j: i64) -> &[f32];
+}
+
+impl Coarse for PyramidLevel {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn row(&self, j: i64) -> &[f32] {
+        let y = j.clamp(0, self.height as i64 - 1) as usize;
+        &self.data[y * self.width..][..self.width]
+    }
+}
+
+/// A band of the coarser level must hold every row the clamped indices
+/// reach: [`super::codec::coarse_rows`] of the tiles it predicts.
+impl Coarse for Rows<'_> {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn row(&self, j: i64) -> &[f32] {
+        let y = j.clamp(0, self.height as i64 - 1) as usize;
+        &self.data[self.index(0, y)..][..self.width]
+    }
+}
 
 /// The four-point interpolation weights −1/16, 9/16, 9/16, −1/16 at the
 /// midpoint between `v1` and `v2`, and the activity there: the step
