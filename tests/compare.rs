@@ -800,3 +800,39 @@ fn only_depth_and_only_colour_compare_one_buffer() {
         assert!(err.contains("--subpixel-bits"), "{err}");
     }
 }
+
+/// Big-endian depths whose little-endian reading is finite but outside
+/// 0..1 (not NaN or infinite) are still named as big-endian: 0.5000039
+/// (bits 0x3F000042) reads as 32.00024 the other way round.
+#[test]
+fn big_endian_is_named_when_the_wrong_reading_is_finite() {
+    use terraclip::check::outside::load_depth;
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("depth-endian");
+    std::fs::create_dir_all(&dir).unwrap();
+    let z = f32::from_bits(0x3F00_0042);
+    assert_eq!(f32::from_le_bytes(z.to_be_bytes()), 32.000_24);
+    let path = dir.join("be.f32");
+    std::fs::write(
+        &path,
+        [z; 6]
+            .iter()
+            .flat_map(|v| v.to_be_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    let err = load_depth(&path, 3, 2, None).unwrap_err().to_string();
+    assert!(
+        err.contains("be.f32") && err.contains("big-endian floats"),
+        "{err}"
+    );
+    // The same values little-endian read as they are.
+    std::fs::write(
+        &path,
+        [z; 6]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    assert_eq!(load_depth(&path, 3, 2, None).unwrap(), vec![z; 6]);
+}
