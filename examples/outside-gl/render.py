@@ -13,7 +13,9 @@ little-endian float depth, top row first), which
 
     terraclip compare EXPORT_DIR --image OUT_PREFIX.png --depth OUT_PREFIX.f32
 
-judges. MISTAKE=no-clip-control, last-vertex or d24 in the environment
+judges. It compiles the export's terrain.vert and terrain.frag when the
+export has them, and with OWN_SHADERS=1, or without them, its own shader
+written from the docs' arithmetic. MISTAKE=no-clip-control, last-vertex or d24 in the environment
 leaves out one of the settings the docs name, to see what `compare` says.
 It draws the effects lambert, phong, fog, level-tint, wireframe
 and morph (a geometry effect: nothing to draw). normal-map and shadows
@@ -209,6 +211,11 @@ def main():
         ),
         albedo="v_ALBEDO" if "_ALBEDO" in names else "albedo_tint",
     ).replace("#version 450", "#version 450\n" + defines, 1)
+    # The export's own GLSL when it has it (terrain.vert, terrain.frag),
+    # else the shader above, written from the docs' arithmetic.
+    if os.path.exists(f"{ref}/terrain.vert") and not os.environ.get("OWN_SHADERS"):
+        vs = open(f"{ref}/terrain.vert").read()
+        fs = open(f"{ref}/terrain.frag").read()
     prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
 
     # 4 columns of 4, as GLSL stores a mat4.
