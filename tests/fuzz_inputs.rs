@@ -228,7 +228,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("geographic tif", 617),
     ("pack", 2),
     ("upsampled pack", 0),
-    ("export", 189),
+    ("export", 188),
     ("export manifest", 5),
     ("compare", 49),
     ("merge cracks", 21),
