@@ -15,12 +15,12 @@ little-endian float depth, top row first), which
 
 judges. It compiles the export's terrain.vert and terrain.frag when the
 export has them, and with OWN_SHADERS=1, or without them, its own shader
-written from the docs' arithmetic. MISTAKE=no-clip-control, last-vertex or d24 in the environment
+written from the docs' arithmetic. MISTAKE=no-clip-control, last-vertex, d24 or (with OWN_SHADERS=1)
+hardware-filter in the environment
 leaves out one of the settings the docs name, to see what `compare` says.
-It draws the effects lambert, phong, fog, level-tint, wireframe
-and morph (a geometry effect: nothing to draw). normal-map and shadows
-read textures from effects.exr, which this renderer does not decode; it
-exits with status 3 on such an export.
+It draws every effect: lambert, phong, fog, level-tint, wireframe, morph
+(a geometry effect: nothing to draw), and normal-map and shadows, whose
+maps it reads from effects.exr with the OpenEXR package (PyPI).
 """
 
 import ctypes
@@ -37,7 +37,6 @@ GL_ZERO_TO_ONE = 0x935F
 GL_TEXTURE_2D = 0x0DE1
 GL_DEPTH_COMPONENT32F = 0x8CAC
 GL_DEPTH_ATTACHMENT = 0x8D00
-TEXTURED = {"normal-map", "shadows"}
 
 
 def read_glb(path):
@@ -100,11 +99,97 @@ vec3 normalize3(vec3 a) {{
     return l > 0.0 ? a / l : a;
 }}
 
+// Texture reads ("Texture reads" in the docs): texelFetch and the
+// bilinear blend written out, never the sampler's own filter.
+uniform ivec2 window_origin;
+
+#if SHADOWS
+uniform sampler2D light_fine;
+uniform sampler2D light_coarse;
+uniform bool light_blend;
+uniform int light_scale;
+
+float texel(sampler2D t, int x, int y) {{
+    ivec2 size = textureSize(t, 0);
+    return texelFetch(t, ivec2(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1)), 0).x;
+}}
+
+float bilinear(sampler2D t, int ix, int iy, float tx, float ty) {{
+#if HW_FILTER
+    // MISTAKE=hardware-filter: the sampler's bilinear filter instead.
+    vec2 at = clamp(vec2(ix, iy) + vec2(tx, ty), vec2(0.0), vec2(textureSize(t, 0) - 1));
+    return texture(t, (at + 0.5) / vec2(textureSize(t, 0))).x;
+#endif
+    precise float top = (1.0 - tx) * texel(t, ix, iy) + tx * texel(t, ix + 1, iy);
+    precise float bottom = (1.0 - tx) * texel(t, ix, iy + 1) + tx * texel(t, ix + 1, iy + 1);
+    precise float r = (1.0 - ty) * top + ty * bottom;
+    return r;
+}}
+
+float light_at(vec2 uv, float alpha) {{
+    precise vec2 h = uv * float(light_scale);
+    vec2 f = floor(h);
+    ivec2 b = window_origin * light_scale;
+    precise float fine = bilinear(light_fine, b.x + int(f.x), b.y + int(f.y), h.x - f.x, h.y - f.y);
+    if (alpha <= 0.0 || !light_blend) {{
+        return fine;
+    }}
+    // The next level at half the coordinate, b split into b div 2 and b mod 2.
+    precise vec2 g = (vec2(b & 1) + uv * float(light_scale)) * 0.5;
+    vec2 gf = floor(g);
+    precise float coarse = bilinear(light_coarse, (b.x >> 1) + int(gf.x), (b.y >> 1) + int(gf.y), g.x - gf.x, g.y - gf.y);
+    precise float r = (1.0 - alpha) * fine + alpha * coarse;
+    return r;
+}}
+#endif
+
+#if NORMAL_MAP
+uniform sampler2D normal_fine;
+uniform ivec2 normal_fine_origin;
+uniform sampler2D normal_coarse;
+uniform ivec2 normal_coarse_origin;
+uniform bool normal_blend;
+
+vec3 mix3(vec3 a, vec3 b, float t) {{
+    precise vec3 r = (1.0 - t) * a + t * b;
+    return r;
+}}
+
+vec3 normal_at(sampler2D t, vec2 h) {{
+    ivec2 size = textureSize(t, 0);
+#if HW_FILTER
+    return texture(t, (clamp(h, vec2(0.0), vec2(size - 1)) + 0.5) / vec2(size)).xyz;
+#endif
+    ivec2 i = clamp(ivec2(floor(h)), ivec2(0), size - 2);
+    precise vec2 w = clamp(h - vec2(i), 0.0, 1.0);
+    vec3 top = mix3(texelFetch(t, i, 0).xyz, texelFetch(t, i + ivec2(1, 0), 0).xyz, w.x);
+    vec3 bottom = mix3(texelFetch(t, i + ivec2(0, 1), 0).xyz, texelFetch(t, i + ivec2(1, 1), 0).xyz, w.x);
+    return mix3(top, bottom, w.y);
+}}
+
+vec3 mapped_normal(vec2 uv, float alpha) {{
+    precise vec2 h = vec2(2 * window_origin - normal_fine_origin) + 2.0 * uv;
+    vec3 n = normal_at(normal_fine, h);
+    if (normal_blend && alpha > 0.0) {{
+        precise vec2 hc = vec2(window_origin - normal_coarse_origin) + uv;
+        n = mix3(n, normal_at(normal_coarse, hc), alpha);
+    }}
+    return normalize3(n);
+}}
+#endif
+
 void main() {{
     precise vec3 c = {albedo};
     float s = 1.0;
+#if SHADOWS
+    s = light_at(v_LEVEL_UV, {alpha});
+#endif
 #if LIT
+#if NORMAL_MAP
+    vec3 n = mapped_normal(v_LEVEL_UV, {alpha});
+#else
     vec3 n = normalize3(v_NORMAL);
+#endif
     precise float light = max(dot3(n, sun), 0.0) * s;
     c = c * (ambient + (1.0 - ambient) * light);
 #if PHONG
@@ -117,6 +202,8 @@ void main() {{
     precise float spec = specular_strength * p * s;
     c = c + vec3(spec);
 #endif
+#elif SHADOWS
+    c = c * (ambient + (1.0 - ambient) * s);
 #endif
 #if FOG
     precise float g = 1.0 - v_FOG;
@@ -152,6 +239,55 @@ def png(path, width, height, rgba):
     open(path, "wb").write(data)
 
 
+def effect_textures(ctx, ref, frame):
+    """effects.exr's layers as float textures, by layer name: lightmap{k}
+    (channel L, R32F) and normal{l} (channels X, Y, Z, RGB32F)."""
+    if not (frame["lightmap"] or frame["normal_maps"]):
+        return {}
+    import numpy
+    import OpenEXR
+
+    textures = {}
+    for part in OpenEXR.File(f"{ref}/effects.exr").parts:
+        names = ["L"] if part.name().startswith("lightmap") else ["X", "Y", "Z"]
+        pixels = numpy.stack([part.channels[c].pixels for c in names], axis=-1)
+        height, width = pixels.shape[:2]
+        tex = ctx.texture(
+            (width, height), len(names), pixels.astype("<f4").tobytes(), dtype="f4"
+        )
+        if os.environ.get("MISTAKE") == "hardware-filter":
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        else:
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        textures[part.name()] = tex
+    return textures
+
+
+def bind_level(prog, maps, frame, level, origin):
+    """The per-draw uniforms of the level one glTF primitive draws: its
+    window origin, and its maps and the next coarser level's."""
+    if not maps:
+        return
+    prog["window_origin"].value = tuple(origin)
+    if frame["lightmap"]:
+        count = len(frame["lightmap"]["levels"])
+        blend = level + 1 < count
+        maps[f"lightmap{min(level, count - 1)}"].use(0)
+        maps[f"lightmap{level + 1 if blend else min(level, count - 1)}"].use(1)
+        prog["light_fine"].value, prog["light_coarse"].value = 0, 1
+        prog["light_blend"].value = blend
+        prog["light_scale"].value = frame["lightmap"]["scale"]
+    if frame["normal_maps"]:
+        by_level = {m["level"]: m for m in frame["normal_maps"]}
+        fine, coarse = by_level[level], by_level.get(level + 1)
+        maps[f"normal{level}"].use(2)
+        maps[f"normal{level + 1 if coarse else level}"].use(3)
+        prog["normal_fine"].value, prog["normal_coarse"].value = 2, 3
+        prog["normal_fine_origin"].value = tuple(fine["origin"])
+        prog["normal_coarse_origin"].value = tuple((coarse or fine)["origin"])
+        prog["normal_blend"].value = coarse is not None
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
@@ -159,9 +295,6 @@ def main():
     frame = json.load(open(f"{ref}/frame.json"))
     camera = json.load(open(f"{ref}/camera.json"))
     effects = set(frame["effects"])
-    if effects & TEXTURED:
-        print(f"{ref}: {sorted(effects & TEXTURED)} need effects.exr: not drawn")
-        sys.exit(3)
     width, height = camera["width"], camera["height"]
     doc, binary = read_glb(f"{ref}/frame.glb")
     varyings = [v for v in frame["varyings"]]
@@ -203,6 +336,9 @@ def main():
             f"#define PHONG {int('phong' in effects)}",
             f"#define FOG {int('fog' in effects)}",
             f"#define WIRE {int('wireframe' in effects)}",
+            f"#define SHADOWS {int('shadows' in effects)}",
+            f"#define NORMAL_MAP {int('normal-map' in effects)}",
+            f"#define HW_FILTER {int(mistake == 'hardware-filter')}",
         ]
     )
     fs = FRAGMENT.format(
@@ -210,6 +346,7 @@ def main():
             f"{qualifier(v)}in {glsl_type(v)} v{v['attribute']};" for v in varyings
         ),
         albedo="v_ALBEDO" if "_ALBEDO" in names else "albedo_tint",
+        alpha="v_MORPH_ALPHA" if "_MORPH_ALPHA" in names else "0.0",
     ).replace("#version 450", "#version 450\n" + defines, 1)
     # The export's own GLSL when it has it (terrain.vert, terrain.frag),
     # else the shader above, written from the docs' arithmetic.
@@ -257,12 +394,15 @@ def main():
     ctx.depth_func = "<"
     ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
 
+    maps = effect_textures(ctx, ref, frame)
+    origins = {entry["level"]: entry["origin"] for entry in frame["levels"]}
     palette = frame["level_palette"]
     for prim in doc["meshes"][0]["primitives"]:
         attrs = prim["attributes"]
         level = prim["extras"]["level"]
         tint = palette[level % len(palette)]
         set_uniform("albedo_tint", tuple(c / 255.0 for c in tint))
+        bind_level(prog, maps, frame, level, origins.get(level))
         buffers = []
         for name in ["POSITION"] + [v["attribute"] for v in varyings]:
             raw, n, count = accessor_bytes(doc, binary, attrs[name])

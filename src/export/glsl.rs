@@ -3,29 +3,28 @@
 //! of docs/verify-your-renderer.md, "The shading, exactly", written out
 //! for the frame's effects and varyings, each step `precise` so that no
 //! compiler fuses or reorders it. `examples/outside-gl` draws every golden
-//! it covers with these files and matches the reference bit for bit on
-//! llvmpipe (`.ci/outside-gl`).
+//! with these files and matches the reference bit for bit on llvmpipe
+//! (`.ci/outside-gl`).
 //!
 //! Written by hand rather than translated from the wgpu back end's WGSL
 //! with naga: that shader pulls vertices from clipmap textures and
 //! storage buffers bound terraclip's way, which an outside renderer drawing
-//! `frame.glb` does not have. Effects that read `effects.exr` (normal-map,
-//! shadows) are not covered: their texture addressing is specified in the
-//! docs, and no shader is written for such a frame.
+//! `frame.glb` does not have. Its texture reads are the same arithmetic:
+//! `effects.exr`'s maps are read with `texelFetch` and blended in the
+//! shader, because a sampler's own bilinear filter rounds its weights to
+//! a few bits (8 on most hardware) and would not match.
+//!
+//! Each glTF primitive is one level, so the textures and window origin of
+//! that level (and the next coarser one, which the morph blends toward)
+//! are per-draw uniforms; the fragment shader's comment says where each
+//! comes from.
 
 use super::VaryingFile;
 use crate::scene::names::Effect;
 
 /// The vertex and fragment shaders for a frame with `effects` and
-/// `varyings` (in `frame.json`'s order), or none when an effect reads
-/// textures.
-pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> Option<(String, String)> {
-    if effects
-        .iter()
-        .any(|e| matches!(e, Effect::NormalMap | Effect::Shadows))
-    {
-        return None;
-    }
+/// `varyings` (in `frame.json`'s order).
+pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> (String, String) {
     let ty = |v: &VaryingFile| match v.components {
         1 => "float".to_string(),
         n => format!("vec{n}"),
@@ -60,9 +59,19 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> Option<(String, 
     } else {
         "albedo_tint"
     };
+    let (shadows, mapped) = (has(Effect::Shadows), has(Effect::NormalMap));
     let mut body = format!("    precise vec3 c = {albedo};\n    float s = 1.0;\n");
-    if has(Effect::Lambert) || has(Effect::Phong) {
-        body += "    vec3 n = normalize3(v_NORMAL);\n\
+    if shadows {
+        body += "    s = shadow_at(v_LEVEL_UV, morph_alpha());\n";
+    }
+    let lit = has(Effect::Lambert) || has(Effect::Phong);
+    if lit {
+        body += if mapped {
+            "    vec3 n = pixel_normal(v_LEVEL_UV, morph_alpha());\n"
+        } else {
+            "    vec3 n = normalize3(v_NORMAL);\n"
+        };
+        body += "\
                  \x20   precise float light = max(dot3(n, sun), 0.0) * s;\n\
                  \x20   c = c * (ambient + (1.0 - ambient) * light);\n";
         if has(Effect::Phong) {
@@ -75,6 +84,8 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> Option<(String, 
                      \x20   precise float spec = specular_strength * p * s;\n\
                      \x20   c = c + vec3(spec);\n";
         }
+    } else if shadows {
+        body += "    c = c * (ambient + (1.0 - ambient) * s);\n";
     }
     if has(Effect::Fog) {
         body += "    precise float g = 1.0 - v_FOG;\n\
@@ -112,9 +123,128 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> Option<(String, 
          \x20   precise float l = sqrt(dot3(a, a));\n\
          \x20   return l > 0.0 ? a / l : a;\n\
          }}\n\
-         \n\
+         {}\n\
          void main() {{\n{body}    colour = vec4(c, 1.0);\n}}\n",
         lines(&|v| format!("{}in {} v{};", qual(v), ty(v), v.attribute)),
+        textures(shadows, mapped, varyings),
     );
-    Some((vert, frag))
+    (vert, frag)
 }
+
+/// The texture-reading functions and their per-draw uniforms, for the
+/// effects that read `effects.exr` (empty for neither).
+fn textures(shadows: bool, mapped: bool, varyings: &[VaryingFile]) -> String {
+    if !shadows && !mapped {
+        return String::new();
+    }
+    let alpha = if varyings.iter().any(|v| v.attribute == "_MORPH_ALPHA") {
+        "v_MORPH_ALPHA"
+    } else {
+        "0.0"
+    };
+    let mut t = format!(
+        "\n// Per draw (one glTF primitive, one level l): window_origin is\n\
+         // frame.json's levels[l].origin.\n\
+         uniform ivec2 window_origin;\n\
+         \n\
+         float morph_alpha() {{\n\
+         \x20   return {alpha};\n\
+         }}\n"
+    );
+    if shadows {
+        t += LIGHTMAP;
+    }
+    if mapped {
+        t += NORMAL_MAP;
+    }
+    t
+}
+
+/// `shade::shadows::Lightmap::sample`: bilinear reads clamped to the
+/// level's edges, blended by α toward level l + 1 read at half the
+/// coordinate.
+const LIGHTMAP: &str = "
+// shadows: light_fine is effects.exr's lightmap{min(l, K - 1)} and
+// light_coarse its lightmap{l + 1}, K being frame.json's lightmap.levels
+// count; light_blend is l + 1 < K; light_scale is lightmap.scale. R32F
+// textures, read with texelFetch only.
+uniform sampler2D light_fine;
+uniform sampler2D light_coarse;
+uniform bool light_blend;
+uniform int light_scale;
+
+float light_get(sampler2D t, int x, int y) {
+    ivec2 size = textureSize(t, 0);
+    return texelFetch(t, ivec2(clamp(x, 0, size.x - 1), clamp(y, 0, size.y - 1)), 0).x;
+}
+
+float light_bilinear(sampler2D t, int ix, int iy, float tx, float ty) {
+    precise float top = (1.0 - tx) * light_get(t, ix, iy) + tx * light_get(t, ix + 1, iy);
+    precise float bottom = (1.0 - tx) * light_get(t, ix, iy + 1) + tx * light_get(t, ix + 1, iy + 1);
+    precise float r = (1.0 - ty) * top + ty * bottom;
+    return r;
+}
+
+float shadow_at(vec2 uv, float alpha) {
+    float sf = float(light_scale);
+    precise vec2 h = vec2(uv.x * sf, uv.y * sf);
+    vec2 f = floor(h);
+    ivec2 b = window_origin * light_scale;
+    precise float fine = light_bilinear(light_fine, b.x + int(f.x), b.y + int(f.y), h.x - f.x, h.y - f.y);
+    if (alpha <= 0.0 || !light_blend) {
+        return fine;
+    }
+    // Level l + 1 at the same point: half the level-l coordinate.
+    precise vec2 hh = vec2((float(b.x & 1) + uv.x * sf) * 0.5, (float(b.y & 1) + uv.y * sf) * 0.5);
+    vec2 ff = floor(hh);
+    precise float coarse = light_bilinear(light_coarse, (b.x >> 1) + int(ff.x), (b.y >> 1) + int(ff.y), hh.x - ff.x, hh.y - ff.y);
+    precise float r = (1.0 - alpha) * fine + alpha * coarse;
+    return r;
+}
+";
+
+/// `shade::normal_map::pixel_normal`: level l's map on its half-texel
+/// grid, blended by α toward level l + 1's, then normalised.
+const NORMAL_MAP: &str = "
+// normal-map: normal_fine is effects.exr's normal{l} (channels X, Y, Z as
+// an RGB32F texture) and normal_fine_origin its frame.json normal_maps[]
+// origin; normal_coarse and normal_coarse_origin the same of level l + 1;
+// normal_blend is whether level l + 1 has a normal map. Read with
+// texelFetch only.
+uniform sampler2D normal_fine;
+uniform ivec2 normal_fine_origin;
+uniform sampler2D normal_coarse;
+uniform ivec2 normal_coarse_origin;
+uniform bool normal_blend;
+
+vec3 lerp3(vec3 a, vec3 b, float t) {
+    precise float k = 1.0 - t;
+    precise vec3 r = vec3(k * a.x + t * b.x, k * a.y + t * b.y, k * a.z + t * b.z);
+    return r;
+}
+
+vec3 normal_sample(sampler2D t, vec2 h) {
+    ivec2 size = textureSize(t, 0);
+    int ix = clamp(int(floor(h.x)), 0, size.x - 2);
+    int iy = clamp(int(floor(h.y)), 0, size.y - 2);
+    precise float tx = clamp(h.x - float(ix), 0.0, 1.0);
+    precise float ty = clamp(h.y - float(iy), 0.0, 1.0);
+    vec3 top = lerp3(texelFetch(t, ivec2(ix, iy), 0).xyz, texelFetch(t, ivec2(ix + 1, iy), 0).xyz, tx);
+    vec3 bottom = lerp3(texelFetch(t, ivec2(ix, iy + 1), 0).xyz, texelFetch(t, ivec2(ix + 1, iy + 1), 0).xyz, tx);
+    return lerp3(top, bottom, ty);
+}
+
+vec3 pixel_normal(vec2 uv, float alpha) {
+    ivec2 o = window_origin;
+    precise vec2 hf = vec2(float(2 * o.x - normal_fine_origin.x) + 2.0 * uv.x,
+                           float(2 * o.y - normal_fine_origin.y) + 2.0 * uv.y);
+    vec3 n = normal_sample(normal_fine, hf);
+    if (normal_blend && alpha > 0.0) {
+        // Level l texel X is half-texel X of level l + 1.
+        precise vec2 hc = vec2(float(o.x - normal_coarse_origin.x) + uv.x,
+                               float(o.y - normal_coarse_origin.y) + uv.y);
+        n = lerp3(n, normal_sample(normal_coarse, hc), alpha);
+    }
+    return normalize3(n);
+}
+";
