@@ -403,12 +403,23 @@ fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
 /// pages (2 KiB of heights over 2 pages and a page they straddle, 512 B
 /// of flags over 2). Levels shorter than 512 rows hold their own height
 /// in rows. Over the same command's peak over a 513² pack (the program,
-/// its buffers and a whole small map), that is the bound. And a flight
-/// ten times longer peaks within 1 MiB of the shorter one's: what the
-/// windows hold does not grow with the path. Measured 2026-12-04, debug
-/// build, 2 workers: 35.7 and 35.9 MiB against a bound of 63.8 MiB (the
-/// 513² flight 14.0); before pack tiles were read rather than mapped and
-/// whole rows of evicted tiles released as one span, 45.8 and 76.1 MiB.
+/// its buffers and a whole small map), that is the bound.
+///
+/// And a flight four times longer peaks within 1 MiB of the shorter one's:
+/// what the windows hold does not grow with the path. The shorter flight
+/// runs 384 frames, to the map's east edge (the path moves 93.4 m east a
+/// frame from x = 5,120 m; the map ends at 40,960 m), because the peak
+/// depends on where the windows sit against the tile grid: flights of 100
+/// and 160 frames peak near 35.1 MiB and every flight from 200 frames on
+/// near 36.5, so a shorter flight would compare a position, not a path.
+/// The 1 MiB is twice the spread of six runs of one length (384 frames:
+/// 36.47 to 36.92 MiB; 1,536: 36.62 to 37.04). A peak is a coarse leak
+/// detector: a flight whose every frame kept 16 KiB failed here (40.5 ->
+/// 49.6 MiB), one keeping 4 KiB a frame did not, its 4.5 MiB going into
+/// heap the peak's transient had already freed. Measured 2026-12-05, debug build,
+/// 2 workers: 36.7 and 36.9 MiB against a bound of 63.9 MiB (the 513²
+/// flight 14.1); before pack tiles were read rather than mapped and whole
+/// rows of evicted tiles released as one span, 45.8 and 76.1 MiB.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_flight_over_a_pack_holds_what_its_windows_need() {
@@ -471,9 +482,9 @@ fn a_flight_over_a_pack_holds_what_its_windows_need() {
     // Rows a level holds at most: 4 tiles of 128, or its own height.
     let rows: f64 = (0..9).map(|l| ((4096usize >> l) + 1).min(512) as f64).sum();
     let bound = base + rows * 5.0 * 4096.0;
-    let (short, long) = (peak(4097, 160), peak(4097, 640));
+    let (short, long) = (peak(4097, 384), peak(4097, 1536));
     println!(
-        "base {:.1} MiB, 160 frames {:.1}, 640 frames {:.1}, bound {:.1}",
+        "base {:.1} MiB, 384 frames {:.1}, 1536 frames {:.1}, bound {:.1}",
         base / mib,
         short / mib,
         long / mib,
