@@ -9,14 +9,15 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Everything that can go wrong in terraclip's library code.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    /// Reading or writing a file failed at the OS level.
-    #[error("{path}: {source}")]
+    /// Reading or writing a file failed at the OS level. The OS's words
+    /// are in the message and not also a `source`: the CLI prints an
+    /// error's chain, which would say them twice.
+    #[error("{path}: {os}")]
     Io {
         /// The file.
         path: PathBuf,
         /// What the OS said.
-        #[source]
-        source: std::io::Error,
+        os: std::io::Error,
     },
     /// A file was readable but its contents are not acceptable.
     #[error("{path}: {reason}")]
@@ -41,7 +42,7 @@ impl Error {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         Error::Io {
             path: path.into(),
-            source,
+            os: source,
         }
     }
     pub(crate) fn file(path: impl Into<PathBuf>, reason: impl Into<String>) -> Self {

@@ -70,8 +70,9 @@ enum Cmd {
     /// Compare another renderer's image (and depth) of an exported frame
     /// with the reference: exact, tiered or FLIP; non-zero exit on failure.
     Compare(cli::compare::Args),
-    /// Join the JSON of a sweep's shards (`--shard i/N` of `cracks`,
-    /// `golden` or `check-gpu`) into what one run prints.
+    /// Join the JSON of a sweep's shards (`--shard i/N` of `golden`,
+    /// `check-gpu`, `cracks`, `tradeoff`, `fly` or `export`) into what one
+    /// run prints.
     Merge(cli::merge::Args),
 }
 

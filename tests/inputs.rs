@@ -25,14 +25,19 @@ fn cli(args: &[&str]) -> (i32, String, String) {
     )
 }
 
-/// Asserts a clean failure whose message names `needle` and `reason`.
+/// Asserts a clean failure whose message names `needle` and says
+/// `reason`, once: an error's chain that repeats its cause reads as two.
 fn fails_cleanly(args: &[&str], needle: &str, reason: &str) {
     let (code, out, err) = cli(args);
     assert_ne!(code, 0, "{args:?} should fail");
     assert!(out.is_empty(), "nothing on stdout: {out}");
     assert!(!err.contains("panicked"), "{err}");
     assert!(err.contains(needle), "message names {needle}: {err}");
-    assert!(err.contains(reason), "message says {reason}: {err}");
+    assert_eq!(
+        err.matches(reason).count(),
+        1,
+        "message says {reason} once: {err}"
+    );
 }
 
 #[test]
@@ -292,6 +297,17 @@ fn bad_scenes_are_clean_errors() {
     let line = text.lines().position(|l| l.starts_with("zoom")).unwrap() + 1;
     rejects("key.toml", &text, &format!("line {line}, column 1"));
     rejects("key.toml", &text, "unknown field `zoom`");
+    let missing = tmp("missing.toml");
+    fails_cleanly(
+        &[
+            "diagram",
+            missing.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ],
+        "missing.toml",
+        "No such file or directory",
+    );
     assert!(!out.exists(), "no output is written on error");
 }
 

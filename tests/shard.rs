@@ -558,3 +558,32 @@ fn sharded_paths_and_their_merges_refuse_what_cannot_be_joined() {
     std::fs::write(&manifest, good).unwrap();
     assert_eq!(std::fs::read(&outside).unwrap(), b"not the export's");
 }
+
+/// `merge --help` names every command whose own help offers `--shard`, so
+/// a user reading it learns every sweep it joins.
+#[test]
+fn merge_help_names_every_sharded_command() {
+    let top = ok(&["--help"]);
+    let commands: Vec<&str> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next())
+        .filter(|c| !["help", "merge"].contains(c))
+        .collect();
+    assert!(commands.len() > 10, "{commands:?}");
+    let sharded: Vec<&str> = commands
+        .iter()
+        .copied()
+        .filter(|c| ok(&[c, "--help"]).contains("--shard"))
+        .collect();
+    assert!(sharded.len() >= 6, "{sharded:?}");
+    let merge = ok(&["merge", "--help"]);
+    for c in sharded {
+        assert!(
+            merge.contains(&format!("`{c}`")),
+            "merge --help omits {c}: {merge}"
+        );
+    }
+}

@@ -93,7 +93,7 @@ impl SceneArgs {
         let mut s = load_scene(path)?;
         s.apply(&self.overrides())?;
         if self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none() {
-            terraclip::studies::views::frame_terrain(&mut s)?;
+            terraclip::scene::frame_terrain(&mut s, false)?;
         }
         Ok(s)
     }

@@ -3,7 +3,10 @@
 //! bad values are errors that name the file, line and column.
 
 pub mod camera;
+mod frame;
 pub(crate) mod names;
+
+pub use frame::frame_terrain;
 
 pub use names::{Effect, LodScheme};
 
@@ -98,7 +101,7 @@ fn filter_from_name<'de, D: serde::Deserializer<'de>>(
 }
 
 /// The scene's `[lod]`: the scheme and its settings (docs/lod-schemes.md lists which
-/// scheme reads which key).
+/// scheme reads which key). Without the table, the clipmap with its defaults.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Lod {
@@ -136,6 +139,26 @@ pub struct Lod {
 
 fn default_scheme() -> LodScheme {
     LodScheme::Clipmap
+}
+
+impl Default for Lod {
+    fn default() -> Self {
+        Lod {
+            scheme: default_scheme(),
+            n: default_n(),
+            levels: None,
+            layout: Layout::default(),
+            transition: None,
+            texel_budget: None,
+            block: None,
+            mode: None,
+            distance: None,
+            tau: None,
+            max_triangles: None,
+            grid: None,
+            range: None,
+        }
+    }
 }
 fn default_n() -> i64 {
     63
@@ -192,6 +215,33 @@ fn default_background() -> [f32; 3] {
     [0.55, 0.7, 0.9]
 }
 
+/// Without an `[image]` table: 960 × 540, the default scene's size.
+impl Default for ImageSpec {
+    fn default() -> Self {
+        ImageSpec {
+            width: 960,
+            height: 540,
+            background: default_background(),
+        }
+    }
+}
+
+/// Without a `[camera]` table: a placeholder that validates, which
+/// [`Scene::parse`] replaces by framing the map ([`frame_terrain`]).
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec {
+            position: [0.0, -1.0, 1.0],
+            look_at: Some([0.0, 0.0, 0.0]),
+            yaw: None,
+            pitch: None,
+            fov: default_fov(),
+            near: default_near(),
+            far: default_far(),
+        }
+    }
+}
+
 /// A parsed, validated scene.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -201,14 +251,21 @@ pub struct Scene {
     /// `[pyramid]`.
     #[serde(default = "default_pyramid")]
     pub pyramid: PyramidSpec,
-    /// `[lod]`.
+    /// `[lod]` (default: the clipmap, n = 63).
+    #[serde(default)]
     pub lod: Lod,
-    /// `[camera]`.
+    /// `[camera]` (default: the map framed from the south, as
+    /// `render --heightmap` frames it).
+    #[serde(default)]
     pub camera: CameraSpec,
-    /// `[image]`.
+    /// `[image]` (default: 960 × 540).
+    #[serde(default)]
     pub image: ImageSpec,
     /// The effects to simulate; anything not listed is not computed.
-    #[serde(default)]
+    /// Without the key, the default scene's `lambert`, `fog` and `morph`
+    /// (the morph closes the seams between clipmap levels); `effects = []`
+    /// asks for none.
+    #[serde(default = "default_effects")]
     pub effects: Vec<Effect>,
     /// `[shading]`: sun, fog and material constants.
     #[serde(default)]
@@ -256,6 +313,10 @@ impl Default for GpuSpec {
     }
 }
 
+fn default_effects() -> Vec<Effect> {
+    vec![Effect::Lambert, Effect::Fog, Effect::Morph]
+}
+
 fn default_pyramid() -> PyramidSpec {
     PyramidSpec {
         filter: Filter::default(),
@@ -266,12 +327,24 @@ fn default_pyramid() -> PyramidSpec {
 
 impl Scene {
     /// Parses scene text; `origin` names the source in errors.
+    /// A scene without a `[camera]` gets its map framed, which reads the
+    /// map's size and relief (a pack's header, or the whole file).
     pub fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
-        let mut s: Scene = toml::from_str(text)
-            .map_err(|e| Error::file(origin, format!("invalid scene: {}", e.to_string().trim())))?;
+        let invalid = |e: toml::de::Error| {
+            Error::file(origin, format!("invalid scene: {}", e.to_string().trim()))
+        };
+        let table: toml::Table = toml::from_str(text).map_err(invalid)?;
+        let mut s: Scene = toml::from_str(text).map_err(invalid)?;
         s.base_dir = base_dir.to_path_buf();
         s.origin = origin.to_string();
         s.validate()?;
+        if !table.contains_key("camera") {
+            let fog_given = table
+                .get("shading")
+                .and_then(|t| t.get("fog_density"))
+                .is_some();
+            frame_terrain(&mut s, fog_given)?;
+        }
         Ok(s)
     }
 
@@ -583,6 +656,38 @@ mod tests {
     fn default_scene_parses() {
         let s = Scene::default_scene();
         assert_eq!(s.lod.n, 63);
+    }
+
+    /// A scene of only `[terrain]` is the clipmap at 960 × 540 with the
+    /// default scene's effects, its camera framing the map from the south
+    /// (looking at the map's centre, from outside it) and fog scaled to
+    /// it; a density the scene gives is kept.
+    #[test]
+    fn a_terrain_only_scene_is_framed() {
+        let only =
+            "[terrain]\nprocedural = { seed = 3, width = 129, height = 65 }\ncell_size = 10.0\n";
+        let s = Scene::parse(only, "only.toml", Path::new(".")).unwrap();
+        assert_eq!(s.lod, Lod::default());
+        assert_eq!((s.image.width, s.image.height), (960, 540));
+        assert_eq!(s.effects, Scene::default_scene().effects);
+        let [x, y, z] = s.camera.look_at.unwrap();
+        assert_eq!([x, y], [640.0, -320.0], "the map's centre");
+        let eye = s.camera.position;
+        assert!(
+            eye[1] < -640.0 && eye[2] > z,
+            "south of the map, above it: {eye:?}"
+        );
+        assert!(s.camera.far > 1280.0, "{}", s.camera.far);
+        let framed_fog = s.shading.fog_density;
+        assert_ne!(framed_fog, ShadeParams::default().fog_density);
+        let kept = format!("{only}[shading]\nfog_density = 0.25\n");
+        let s = Scene::parse(&kept, "kept.toml", Path::new(".")).unwrap();
+        assert_eq!(s.shading.fog_density, 0.25);
+        let none = format!("effects = []\n{only}");
+        assert!(Scene::parse(&none, "n.toml", Path::new("."))
+            .unwrap()
+            .effects
+            .is_empty());
     }
 
     #[test]
