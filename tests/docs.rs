@@ -2,7 +2,8 @@
 //! `--json` keys are exactly the keys `docs/cli.md` lists for it. Scripts
 //! depend on those keys, so a key added, renamed or dropped without the
 //! page fails here, and so does a key the page promises that no run
-//! prints. And every relative link in the README and `docs/` resolves.
+//! prints. Every relative link in the README and `docs/` resolves, and no
+//! page or comment names a session or an issue of the project by number.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -620,4 +621,91 @@ fn every_link_in_the_docs_resolves() {
     assert!(checked >= 30, "{checked} links checked");
     assert_eq!(anchor("Hard cases we test"), "hard-cases-we-test");
     assert_eq!(anchor("`render`"), "render");
+}
+
+/// Where `text` names a piece of the project's own history: a word from
+/// `words` followed by a number (`session 31`, `session-31`, `issue #7`).
+fn history_refs(text: &str, words: &[&str]) -> Vec<String> {
+    let lower = text.to_lowercase();
+    let mut found = Vec::new();
+    for w in words {
+        for (at, _) in lower.match_indices(w) {
+            let before = lower[..at].chars().next_back();
+            // Another project's issues are citations: "wgpu issues #1574".
+            let cited = ["wgpu ", "naga ", "mesa ", "gfx-rs "]
+                .iter()
+                .any(|p| lower[..at].ends_with(p));
+            if before.is_some_and(|c| c.is_alphanumeric()) || cited {
+                continue;
+            }
+            let rest = lower[at + w.len()..].trim_start_matches([' ', '-', '#', 's']);
+            if rest.starts_with(|c: char| c.is_ascii_digit()) {
+                let line = lower[..at].matches('\n').count() + 1;
+                let end = (at + w.len() + 6).min(text.len());
+                found.push(format!("line {line}: {}", text.get(at..end).unwrap_or(w)));
+            }
+        }
+    }
+    found
+}
+
+/// Pages and comments read as a manual: the history of the work belongs in
+/// `docs/changelog.md`'s topics and the git log, so no page of `docs/`,
+/// the README, nor any source, test, bench, example or CI script names a
+/// session or an issue by number.
+#[test]
+fn no_page_or_comment_names_a_session_or_an_issue() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    // Spelt in pieces so this file does not name them itself.
+    let words = [["ses", "sion"].concat(), ["iss", "ue"].concat()];
+    let words: Vec<&str> = words.iter().map(String::as_str).collect();
+    assert_eq!(
+        history_refs(
+            "See Session 12, the session-31 decoder and issue #7.",
+            &words
+        )
+        .len(),
+        3
+    );
+    assert!(history_refs("a session of 3 frames; 2 issues", &words).is_empty());
+    assert!(history_refs("wgpu issues #1574 and #1614", &words).is_empty());
+    let mut files = vec![root.join("README.md")];
+    let mut dirs = vec![
+        root.join("docs"),
+        root.join("src"),
+        root.join("tests"),
+        root.join("benches"),
+        root.join("examples"),
+        root.join(".ci"),
+    ];
+    while let Some(d) = dirs.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                if !p.ends_with("data") && !p.ends_with("__pycache__") {
+                    dirs.push(p);
+                }
+            } else if p.extension().is_some_and(|x| {
+                ["md", "rs", "py", "sh", "toml", "wgsl"].contains(&x.to_str().unwrap_or(""))
+            }) || p.extension().is_none()
+            {
+                files.push(p);
+            }
+        }
+    }
+    let mut named = Vec::new();
+    for f in &files {
+        let Ok(text) = std::fs::read_to_string(f) else {
+            continue;
+        };
+        // This file spells the patterns out in its own examples.
+        if f.ends_with("tests/docs.rs") {
+            continue;
+        }
+        for r in history_refs(&text, &words) {
+            named.push(format!("{}: {r}", f.strip_prefix(root).unwrap().display()));
+        }
+    }
+    assert!(files.len() > 100, "{} files read", files.len());
+    assert!(named.is_empty(), "{}", named.join("\n"));
 }
