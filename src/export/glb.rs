@@ -24,7 +24,7 @@ pub struct Varying {
     /// The attribute's name (with the leading underscore glTF asks of
     /// application-specific attributes).
     pub name: &'static str,
-    /// Offset in [`Layout`] order.
+    /// Offset in `Layout` order.
     pub offset: usize,
     /// Components (1 to 3).
     pub components: usize,

@@ -21,7 +21,7 @@
 //! the encoder picked for its context: its phase and the roughness of what
 //! it was predicted from. No phase is predicted from its own samples, so a
 //! decoder computes a whole phase's predictions and contexts before
-//! entropy-decoding it ([`super::predict`]).
+//! entropy-decoding it (`pack::predict`).
 
 use super::model::{self, ESCAPE, K, SCALES};
 use super::predict::{self, Coarse, Planes};
@@ -69,7 +69,7 @@ pub enum Quant {
 pub enum Predictor {
     /// Phase by phase, as a lifting scheme does: the samples on the
     /// coarse grid from the coarser level, the rest by four-point
-    /// interpolation of the level's own samples decoded before ([`predict`]
+    /// interpolation of the level's own samples decoded before (`pack::predict`
     /// says how). The smaller code.
     #[default]
     Lifting,

@@ -8,7 +8,7 @@
 //!    use a lattice): the lowest valid height, which fills no-data as a
 //!    loaded map's is filled, and whether every sample is on the lattice.
 //! 2. The pyramid: each coarser level from bands of the one below, with the
-//!    whole-level build's own block code ([`downsample::block`]), so every
+//!    whole-level build's own block code (`downsample::block`), so every
 //!    sample has the bits `Pyramid::build` gives; written to its spill file.
 //! 3. The code: from the coarsest level down, each row of tiles coded from
 //!    its band and the band of the coarser level's reconstruction it is

@@ -252,7 +252,7 @@ impl Pyramid {
     /// within this call's budget, and says which levels are ready (all of
     /// them for a whole pyramid). A filtered lazy pyramid builds finest
     /// first, level 0's window whatever the budget; a decoded one coarse to
-    /// fine ([`super::decoded`]).
+    /// fine (`pyramid::decoded`).
     pub fn build_around(&mut self, windows: &[[i64; 4]]) -> super::Built {
         if self.decoded.is_some() {
             return self.decode_around(windows);

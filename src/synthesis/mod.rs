@@ -148,7 +148,7 @@ pub fn check_roughness(h: f64) -> Result<(), String> {
 /// levels 1 and 2): H with 2^H = next / finest, as fractal terrain's
 /// detail shrinks by 2^−H per halving of the step, within
 /// 0..=[`MAX_ROUGHNESS`], to the nearest 1/1024 (found by bisection on
-/// [`pow2`] rather than by `log2`, so every machine agrees). `None` when
+/// `pow2` rather than by `log2`, so every machine agrees). `None` when
 /// either has no detail.
 pub fn roughness_between(finest: f64, next: f64) -> Option<f64> {
     if !(finest > 0.0 && next > 0.0 && finest.is_finite() && next.is_finite()) {

@@ -2,11 +2,11 @@
 //!
 //! The levels finer than the map are made a tile at a time from the next
 //! coarser level, as the clipmap's windows reach them, and evicted behind
-//! them like a pack's decoded tiles ([`crate::pyramid::decoded`]): a
+//! them like a pack's decoded tiles (`pyramid::decoded`): a
 //! synthesised level of any size costs only the tiles around the viewer.
 //! Each sample is a function of its position and the coarser level's
 //! samples alone, so the levels are the same bits whichever tiles are
-//! made in whichever order, and the same as [`synthesize`] made whole.
+//! made in whichever order, and the same as [`super::synthesize`] made whole.
 
 use super::{
     amplitude, detail_rms_window, roughness_between, synthesize_window, NoiseTable, MAX_ROUGHNESS,
