@@ -18,7 +18,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&format!("update_{name}"), |b| {
             b.iter(|| {
                 i += 1;
-                let cam = terraclip::studies::views::path_camera(&start, i % 400, 5.0);
+                let cam = terraclip::camera::path_camera(&start, i % 400, 5.0);
                 let f = cam.frustum();
                 let view = View {
                     camera: &cam,

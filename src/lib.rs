@@ -16,6 +16,7 @@
 
 #![warn(missing_docs)]
 
+pub mod camera;
 pub mod check;
 pub mod clipmap;
 pub mod cpu;
@@ -38,7 +39,7 @@ pub mod terrain;
 pub use error::{Error, Result};
 pub use frame::stats::Passes;
 pub use render::{Image, RenderOptions, RenderStats, Session};
-pub use scene::camera::Camera;
+pub use camera::Camera;
 pub use scene::Scene;
 
 /// The README's code blocks, compiled and run by `cargo test --doc`.

@@ -205,7 +205,7 @@ fn flip_passes_one_step_and_fails_two() {
     assert!(tails[1][1].max(tails[0][1]) <= 0.1106, "{tails:?}");
 }
 
-fn scene_camera(name: &str) -> terraclip::scene::camera::Camera {
+fn scene_camera(name: &str) -> terraclip::camera::Camera {
     Scene::load(Path::new(&format!("golden/{name}.toml")))
         .unwrap()
         .camera()

@@ -6,7 +6,7 @@ use glam::DVec3;
 use proptest::prelude::*;
 use std::collections::HashSet;
 use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
-use terraclip::scene::camera::{Camera, Frustum};
+use terraclip::camera::{Camera, Frustum};
 use terraclip::terrain::world::WorldMap;
 
 fn tri_key(t: &[MeshVertex; 3]) -> [(i64, i64); 3] {

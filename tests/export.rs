@@ -387,7 +387,7 @@ fn the_files_hold_what_the_manifest_says() {
         "{fo}"
     );
     assert_eq!(c.eye_relative, (cam.eye - fo).as_vec3().to_array());
-    let rel = terraclip::scene::camera::Camera {
+    let rel = terraclip::camera::Camera {
         eye: cam.eye - fo,
         target: cam.target - fo,
         ..cam

@@ -551,7 +551,7 @@ fn merge_result(
     dir: Option<&Path>,
 ) -> Result<bool, String> {
     match catch_unwind(AssertUnwindSafe(|| {
-        terraclip::studies::shard::merge(parts, dir)
+        terraclip::studies::merge::merge(parts, dir)
     })) {
         Err(_) => Err(format!("merge panicked on {texts:?}")),
         // A crack survey's merge sums every part's views: none dropped.

@@ -10,7 +10,7 @@ use terraclip::lod::geomipmap::{Config, GeoMipMap, Mode};
 use terraclip::lod::roam::{self, Roam};
 use terraclip::lod::{Lod, View};
 use terraclip::pyramid::{Filter, Pyramid};
-use terraclip::scene::camera::Camera;
+use terraclip::camera::Camera;
 use terraclip::scene::{Effect, Scene};
 use terraclip::studies::shard::Shard;
 

@@ -631,7 +631,7 @@ fn flight(
     use terraclip::frame::stats::Passes;
     use terraclip::render::{RenderOptions, Session};
     let mut session = Session::new(scene, &mut Passes::default()).unwrap();
-    terraclip::studies::views::path(&scene.camera(), frames, step)
+    terraclip::camera::path(&scene.camera(), frames, step)
         .iter()
         .map(|cam| {
             session

@@ -233,7 +233,7 @@ fn a_flight_over_an_upsampled_pack_decoded_as_it_goes_holds_the_whole_decode() {
     (scene.image.width, scene.image.height) = (320, 180);
     let mut session = Session::new(&scene, &mut Passes::default()).unwrap();
     let (mut evicted, mut windows) = (0, 0);
-    for (i, cam) in terraclip::studies::views::path(&scene.camera(), 48, 400.0)
+    for (i, cam) in terraclip::camera::path(&scene.camera(), 48, 400.0)
         .iter()
         .enumerate()
     {

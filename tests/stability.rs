@@ -15,7 +15,7 @@ use terraclip::frame::surface::Surface;
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::raster::{self, Mesh, Options, Path as RasterPath};
 use terraclip::render::{draw, RenderOptions, RenderStats, Session};
-use terraclip::scene::camera::Camera;
+use terraclip::camera::Camera;
 use terraclip::scene::Scene;
 use terraclip::terrain::Heightmap;
 

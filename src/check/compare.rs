@@ -9,7 +9,7 @@
 //! all count the same pixels.
 
 use crate::render::Image;
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use serde::Serialize;
 /// Tolerance on adapters other than the pinned lavapipe (docs: README
 /// "Tolerance mode"). A real GPU evaluates the same shader arithmetic in

@@ -6,7 +6,7 @@ use crate::error::{write_atomic, Result};
 use crate::frame::stats::{median, Passes};
 use crate::gpu::{ClipDraw, GpuRenderer};
 use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::Scene;
 use serde::Serialize;
 use std::path::Path;
@@ -123,7 +123,7 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     Ok((image, stats))
 }
 
-pub use crate::studies::views::path_camera;
+pub use crate::camera::path_camera;
 
 /// Renders `frames` views of the path on both back ends and compares each;
 /// the GPU's toroids are updated only by each frame's dirty rectangles.

@@ -34,7 +34,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             })?;
         parts.push((p.display().to_string(), v));
     }
-    let merged = terraclip::studies::shard::merge(&parts, a.dir.as_deref())?;
+    let merged = terraclip::studies::merge::merge(&parts, a.dir.as_deref())?;
     if let Some(out) = &a.out {
         terraclip::error::write_atomic(out, format!("{merged}\n").as_bytes())?;
     }

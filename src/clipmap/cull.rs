@@ -7,7 +7,7 @@
 //! the convex polytope, then widened to whole cells and by one cell for
 //! rounding, so no visible cell is ever dropped.
 
-use crate::scene::camera::Frustum;
+use crate::camera::Frustum;
 use crate::terrain::world::WorldMap;
 use glam::{DVec3, DVec4};
 

@@ -12,7 +12,7 @@ pub mod toroid;
 
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
-use crate::scene::camera::Frustum;
+use crate::camera::Frustum;
 use crate::terrain::world::WorldMap;
 pub use footprint::{Footprints, Instance, ShapeId};
 pub use level::ClipLevel;

@@ -31,7 +31,7 @@ use crate::frame::Frame;
 use crate::lod::{LevelInfo, LodMesh};
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
 use crate::render::Image;
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::Effect;
 use crate::shade::normal_map::NormalMap;
 use crate::shade::shadows::Lightmap;
@@ -940,7 +940,7 @@ pub struct Written {
 }
 
 /// Exports `frames` views of `scene` along the path `check-gpu` flies
-/// ([`crate::studies::views::path_camera`], `step` metres a frame) to
+/// ([`crate::camera::path_camera`], `step` metres a frame) to
 /// `dir`: one frame's files at its top, or with more than one frame a
 /// folder `frame-NNNN` each and a manifest over them all. The scene's
 /// LOD scheme is kept across frames, as a renderer's would be.
@@ -989,7 +989,7 @@ pub fn scene_part(
     let mut folders = vec![];
     let mine = shard.run_of(frames);
     for i in 0..mine.end {
-        let camera = crate::studies::views::path_camera(&base, i, step);
+        let camera = crate::camera::path_camera(&base, i, step);
         // The scheme moves through the frames before this part's as it
         // would in one run.
         if i < mine.start {

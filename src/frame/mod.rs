@@ -10,7 +10,7 @@ pub mod vertex;
 use crate::error::Result;
 use crate::lod::LodMesh;
 use crate::pyramid::{Filter, Pyramid};
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::shade::normal_map::{NormalMap, Sources};
 use crate::shade::shadows::Lightmap;
 use crate::shade::{self, fog, normals, wireframe, Effects, Layout, Resources, ShadeParams};

@@ -8,7 +8,7 @@
 
 use crate::clipmap::morph;
 use crate::lod::LodVertex;
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::terrain::world::WorldMap;
 use glam::DVec3;
 

@@ -5,7 +5,7 @@
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::pyramid::{Pyramid, PyramidLevel};
-use crate::scene::camera::Frustum;
+use crate::camera::Frustum;
 use crate::scene::LodScheme;
 use crate::terrain::world::WorldMap;
 use std::sync::Arc;

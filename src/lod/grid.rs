@@ -10,7 +10,7 @@
 use super::{LodMesh, LodVertex};
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::PyramidLevel;
-use crate::scene::camera::Frustum;
+use crate::camera::Frustum;
 use crate::terrain::world::WorldMap;
 
 /// The base-map vertex at (col, row), clamped onto the map.

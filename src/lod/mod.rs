@@ -14,7 +14,7 @@ pub mod roam;
 use crate::clipmap::{Clipmap, ClipmapConfig};
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
-use crate::scene::camera::{Camera, Frustum};
+use crate::camera::{Camera, Frustum};
 use crate::scene::{self, LodScheme};
 use crate::terrain::world::WorldMap;
 use serde::Serialize;

@@ -10,7 +10,7 @@ use crate::pack::reader::PackReader;
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};

@@ -1,6 +1,6 @@
 //! Framing a map: the camera a scene gets when it names none.
 
-use super::camera::Camera;
+use crate::camera::Camera;
 use super::Scene;
 use crate::error::Result;
 use crate::terrain::world::WorldMap;

@@ -2,7 +2,8 @@
 //! it, where the camera is, the image size and the effects. Unknown keys and
 //! bad values are errors that name the file, line and column.
 
-pub mod camera;
+/// The camera, re-exported where the scene's `[camera]` is read.
+pub use crate::camera;
 mod frame;
 pub(crate) mod names;
 
@@ -18,7 +19,7 @@ use crate::shade::Effects;
 /// The shading constants a scene's `[shading]` table sets.
 pub use crate::shade::ShadeParams;
 use crate::terrain::procedural::Procedural;
-use camera::Camera;
+use crate::camera::Camera;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};

@@ -26,7 +26,7 @@ use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::frame::surface::Surface;
 use crate::render::{self, Image, RenderOptions, Session};
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics;
 use crate::studies::shard::Shard;
@@ -222,7 +222,7 @@ fn sum(mut counts: impl Iterator<Item = usize>) -> std::result::Result<usize, &'
         .ok_or("a count past the largest whole number")
 }
 
-/// Joins the surveys of a sweep's shards ([`crate::studies::shard::merge`]
+/// Joins the surveys of a sweep's shards ([`crate::studies::merge::merge`]
 /// checks they are its parts): counts summed, and each scheme's worst view
 /// the one with the most holes, the earliest on a tie, as one run picks it.
 /// Parts read from files may disagree or hold counts past `usize`: those

@@ -9,7 +9,7 @@ use crate::clipmap::{region, Clipmap};
 use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::render::Session;
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::{LodScheme, Scene};
 use crate::studies::report::text::{self, Anchor};
 use crate::terrain::world::WorldMap;

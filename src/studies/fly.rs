@@ -8,7 +8,6 @@ use crate::render::{Image, RenderOptions, Session};
 use crate::scene::{LodScheme, Scene};
 use crate::studies::metrics;
 use crate::studies::shard::Shard;
-use crate::studies::views;
 use serde::{Deserialize, Serialize};
 
 /// One frame of a fly-through (`fly --json` `frames`).
@@ -59,7 +58,7 @@ pub struct FlyReport {
 }
 
 /// Flies `frames` frames from the scene's camera, `step` metres per frame
-/// (views::path), then holds the last camera for `still` frames (where a
+/// ([`crate::camera::path`]), then holds the last camera for `still` frames (where a
 /// budget-limited update catches up). `each` gets every frame's image.
 /// A `shard` draws its run of the frames ([`Shard::run_of`]); before it,
 /// the LOD scheme is only updated, and the frame just before is drawn
@@ -84,7 +83,7 @@ pub fn fly(
     };
     let mut out = Vec::new();
     let mut prev: Option<(Image, Option<Image>)> = None;
-    let mut cams = views::path(&scene.camera(), frames, step);
+    let mut cams = crate::camera::path(&scene.camera(), frames, step);
     if let Some(&last) = cams.last() {
         cams.extend(std::iter::repeat_n(last, still));
     }

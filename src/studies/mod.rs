@@ -1,11 +1,13 @@
 //! Studies that run the pipeline to measure it: accuracy against time
 //! (`tradeoff`), growth with terrain size (`scaling`), crack surveys
 //! (`cracks`), flights (`fly`), the view sets they share (`views`), their
-//! image metrics (`metrics`), the clipmap diagram and the charts (`report`).
+//! image metrics (`metrics`), the clipmap diagram and the charts (`report`),
+//! and the joining of a sharded sweep's parts (`merge`).
 
 pub mod cracks;
 pub mod diagram;
 pub mod fly;
+pub mod merge;
 pub mod metrics;
 pub(crate) mod report;
 pub mod scaling;

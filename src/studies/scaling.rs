@@ -263,7 +263,7 @@ fn scene(base: &Scene, source: Source, lod: LodScheme, opts: &Options) -> Result
     Ok(s)
 }
 
-fn time_frame(session: &mut Session, cam: &crate::scene::camera::Camera) -> Result<(f64, usize)> {
+fn time_frame(session: &mut Session, cam: &crate::camera::Camera) -> Result<(f64, usize)> {
     let t = Instant::now();
     let mut passes = Passes::default();
     let (frame, _) = session.frame(cam, &mut passes)?;
@@ -476,7 +476,7 @@ fn centred_camera(
     session: &Session,
     size: usize,
     opts: &Options,
-) -> crate::scene::camera::Camera {
+) -> crate::camera::Camera {
     let mut cam = base.camera();
     cam.aspect = opts.image[0] as f64 / opts.image[1] as f64;
     let mid = size as f64 / 2.0;

@@ -13,7 +13,7 @@ use crate::error::Result;
 use crate::frame::stats::Passes;
 use crate::pyramid::Filter;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::studies::metrics;
 use crate::studies::shard::Shard;
@@ -310,7 +310,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
     template.aspect = opts.size[0] as f64 / opts.size[1] as f64;
     let views: Vec<NamedView> = views::atlod_views(&probe, &template);
     let cell = probe.world.cell[0].max(probe.world.cell[1]);
-    let path = views::path(&views[0].camera, opts.path_frames.max(2), 0.5 * cell);
+    let path = crate::camera::path(&views[0].camera, opts.path_frames.max(2), 0.5 * cell);
     // References: brute force per view and along the path.
     let mut bf_views = Vec::new();
     for v in &views {
@@ -338,7 +338,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
         for (i, v) in views.iter().enumerate() {
             // A warm-up frame one step back, so incremental schemes pay
             // their steady-state update, not a rebuild.
-            let back = views::path_camera(&v.camera, 1, -0.5 * cell);
+            let back = crate::camera::path_camera(&v.camera, 1, -0.5 * cell);
             shot(&mut session, &back, st.samples)?;
             // Times are the median of three frames of the view (the
             // machines are noisy). The image and triangles are the last

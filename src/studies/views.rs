@@ -1,9 +1,9 @@
 //! Deterministic camera sets for the surveys: random views above the
 //! terrain (cracks), the wide and low-FOV view sets ATLOD measured error on
-//! (tradeoff), and straight camera paths (fly, popping).
+//! (tradeoff); the straight paths are [`crate::camera::path`].
 
 use crate::render::Session;
-use crate::scene::camera::Camera;
+use crate::camera::Camera;
 use glam::DVec3;
 
 /// xorshift64*, so view sets are the same on every machine.
@@ -120,23 +120,3 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
     out
 }
 
-/// Frame `i` of a straight path from `base`: `step` metres per frame along
-/// the view direction's horizontal part plus 0.37·step sideways (so the
-/// path crosses texel boundaries at varying phases), looking the same way.
-pub fn path_camera(base: &Camera, i: usize, step: f64) -> Camera {
-    let d = base.target - base.eye;
-    let fwd = DVec3::new(d.x, d.y, 0.0).normalize_or(DVec3::X);
-    let side = DVec3::new(-fwd.y, fwd.x, 0.0);
-    let t = i as f64 * step;
-    let off = fwd * t + side * (0.37 * t);
-    Camera {
-        eye: base.eye + off,
-        target: base.target + off,
-        ..*base
-    }
-}
-
-/// The first `frames` cameras of [`path_camera`]'s path.
-pub fn path(start: &Camera, frames: usize, step: f64) -> Vec<Camera> {
-    (0..frames).map(|i| path_camera(start, i, step)).collect()
-}

@@ -1,5 +1,7 @@
 //! Perspective camera in f64 world space, with frustum planes in the wgpu
-//! clip convention (0 ≤ z ≤ w).
+//! clip convention (0 ≤ z ≤ w), and the straight camera paths that flights,
+//! exports and popping measurements follow. It sits below every stage:
+//! culling, LOD and the frame read it, and none of it reads a scene.
 
 use glam::{DMat4, DVec3, DVec4};
 
@@ -110,4 +112,25 @@ impl Frustum {
     pub fn distance(plane: &DVec4, p: DVec3) -> f64 {
         plane.truncate().dot(p) + plane.w
     }
+}
+
+/// Frame `i` of a straight path from `base`: `step` metres per frame along
+/// the view direction's horizontal part plus 0.37·step sideways (so the
+/// path crosses texel boundaries at varying phases), looking the same way.
+pub fn path_camera(base: &Camera, i: usize, step: f64) -> Camera {
+    let d = base.target - base.eye;
+    let fwd = DVec3::new(d.x, d.y, 0.0).normalize_or(DVec3::X);
+    let side = DVec3::new(-fwd.y, fwd.x, 0.0);
+    let t = i as f64 * step;
+    let off = fwd * t + side * (0.37 * t);
+    Camera {
+        eye: base.eye + off,
+        target: base.target + off,
+        ..*base
+    }
+}
+
+/// The first `frames` cameras of [`path_camera`]'s path.
+pub fn path(start: &Camera, frames: usize, step: f64) -> Vec<Camera> {
+    (0..frames).map(|i| path_camera(start, i, step)).collect()
 }
