@@ -26,20 +26,22 @@ pub mod frame;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod lod;
+pub(crate) mod names;
 pub mod pack;
 pub mod pyramid;
 pub mod raster;
 pub mod render;
 pub mod scene;
 pub(crate) mod shade;
+pub mod shard;
 pub mod studies;
 pub mod synthesis;
 pub mod terrain;
 
+pub use camera::Camera;
 pub use error::{Error, Result};
 pub use frame::stats::Passes;
 pub use render::{Image, RenderOptions, RenderStats, Session};
-pub use camera::Camera;
 pub use scene::Scene;
 
 /// The README's code blocks, compiled and run by `cargo test --doc`.

@@ -5,8 +5,8 @@ mod common;
 use glam::DVec3;
 use proptest::prelude::*;
 use std::collections::HashSet;
-use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
 use terraclip::camera::{Camera, Frustum};
+use terraclip::clipmap::{Clipmap, Layout, MeshVertex};
 use terraclip::terrain::world::WorldMap;
 
 fn tri_key(t: &[MeshVertex; 3]) -> [(i64, i64); 3] {

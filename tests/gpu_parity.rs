@@ -682,7 +682,7 @@ fn lavapipes_image_of_every_golden_passes_compare() {
         std::fs::create_dir_all(out()).unwrap();
         let scene = Scene::load(&p).unwrap();
         terraclip::export::scene(&scene, &name, None, 1, 0.0, &dir).unwrap();
-        let (img, _) = parity::render(&mut r, &scene).unwrap();
+        let (img, _) = terraclip::render::gpu::render(&mut r, &scene).unwrap();
         let (png, f32s) = (
             out().join(format!("{name}-gpu.png")),
             out().join(format!("{name}-gpu.f32")),

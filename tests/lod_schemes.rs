@@ -6,11 +6,11 @@
 use proptest::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
+use terraclip::camera::Camera;
 use terraclip::lod::geomipmap::{Config, GeoMipMap, Mode};
 use terraclip::lod::roam::{self, Roam};
 use terraclip::lod::{Lod, View};
 use terraclip::pyramid::{Filter, Pyramid};
-use terraclip::camera::Camera;
 use terraclip::scene::{Effect, Scene};
 use terraclip::studies::shard::Shard;
 

@@ -8,6 +8,7 @@ mod common;
 use glam::{DVec3, DVec4};
 use proptest::prelude::*;
 use std::path::Path;
+use terraclip::camera::Camera;
 use terraclip::clipmap::toroid::Toroid;
 use terraclip::clipmap::{Clipmap, ClipmapConfig, Layout};
 use terraclip::frame::stats::Passes;
@@ -15,7 +16,6 @@ use terraclip::frame::surface::Surface;
 use terraclip::pyramid::{Filter, Pyramid};
 use terraclip::raster::{self, Mesh, Options, Path as RasterPath};
 use terraclip::render::{draw, RenderOptions, RenderStats, Session};
-use terraclip::camera::Camera;
 use terraclip::scene::Scene;
 use terraclip::terrain::Heightmap;
 

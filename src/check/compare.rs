@@ -8,8 +8,8 @@
 //! passes, a parity frame that is exact and a tradeoff row with zero error
 //! all count the same pixels.
 
-use crate::render::Image;
 use crate::camera::Camera;
+use crate::render::Image;
 use serde::Serialize;
 /// Tolerance on adapters other than the pinned lavapipe (docs: README
 /// "Tolerance mode"). A real GPU evaluates the same shader arithmetic in
@@ -238,20 +238,10 @@ pub struct PixelPair {
     pub b_depth: f32,
 }
 
-/// Depths are ≥ 0, so their bit patterns order like the values.
-/// Units in the last place between two f32 of any sign: their distance on
-/// the line of representable values (0 and −0 are 0 apart).
-pub fn ulp_distance(a: f32, b: f32) -> u64 {
-    let ordered = |v: f32| {
-        let b = v.to_bits();
-        if b >> 31 == 1 {
-            -((b & 0x7fff_ffff) as i64)
-        } else {
-            b as i64
-        }
-    };
-    (ordered(a) - ordered(b)).unsigned_abs()
-}
+/// Re-exported for the depth comparisons here; it lives with the
+/// rasteriser, whose f32 depths it measures, so the GPU back end reads it
+/// from there.
+pub use crate::raster::ulp_distance;
 
 fn depth_ulp(p: f32, q: f32) -> u32 {
     let ulp = (p.to_bits() as i64 - q.to_bits() as i64).unsigned_abs();

@@ -10,7 +10,7 @@ use crate::error::{write_atomic, Error, Result};
 use crate::render::{render, Image, RenderOptions};
 use crate::scene::Scene;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// One scene's outcome.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -30,19 +30,8 @@ pub struct GoldenResult {
     pub blessed: bool,
 }
 
-/// The scene files of a golden folder, sorted.
-pub fn scenes(dir: &Path) -> Result<Vec<PathBuf>> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| Error::io(dir, e))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-        .collect();
-    v.sort();
-    if v.is_empty() {
-        return Err(Error::file(dir, "no golden scenes (*.toml) found"));
-    }
-    Ok(v)
-}
+/// The scene files of a golden folder, sorted ([`crate::scene::files_in`]).
+pub use crate::scene::files_in as scenes;
 
 /// Decodes a reference PNG (or any image the `image` crate reads, which
 /// `compare` takes from other renderers) to RGBA8.
@@ -144,7 +133,7 @@ pub fn check(
     dir: &Path,
     bless: bool,
     diff_dir: Option<&Path>,
-    shard: crate::studies::shard::Shard,
+    shard: crate::shard::Shard,
 ) -> Result<Vec<GoldenResult>> {
     scenes(dir)?
         .iter()

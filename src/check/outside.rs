@@ -13,7 +13,7 @@ use crate::render::Image;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-crate::scene::names::named! {
+crate::names::named! {
     /// How `compare` judges an outside image.
     pub enum Mode ("comparison mode") {
         /// No pixel may differ, in colour or (when given) depth.
@@ -27,7 +27,7 @@ crate::scene::names::named! {
     }
 }
 
-crate::scene::names::named! {
+crate::names::named! {
     /// What `compare` compares.
     pub enum Only ("comparison subject") {
         /// Colour, and depth when given.

@@ -4,9 +4,8 @@
 use crate::check::compare::{difference_image, tie_band, Difference};
 use crate::error::{write_atomic, Result};
 use crate::frame::stats::{median, Passes};
-use crate::gpu::{ClipDraw, GpuRenderer};
-use crate::render::{self, ClipFrame, Image, RenderOptions, RenderStats, Session};
-use crate::camera::Camera;
+use crate::gpu::GpuRenderer;
+use crate::render::{self, Image, RenderOptions, Session};
 use crate::scene::Scene;
 use serde::Serialize;
 use std::path::Path;
@@ -55,75 +54,8 @@ pub struct SceneParity {
     pub residual_bytes: Option<u64>,
 }
 
-/// Draws `session`'s frame for `camera` on the GPU (the clipmap path when the
-/// scene has a clipmap), with the update since the previous call; also the
-/// lazy pyramid's state after it, for a lazy scene.
-pub fn gpu_frame(
-    r: &mut GpuRenderer,
-    session: &mut Session,
-    camera: &Camera,
-    passes: &mut Passes,
-) -> Result<(crate::frame::Frame, Image, Option<render::LazyFrame>)> {
-    let (frame, clip) = session.frame(camera, passes)?;
-    let lazy = session.lazy_frame(clip.as_ref());
-    let image = passes.time("gpu", || {
-        draw_session(
-            r,
-            &frame,
-            clip.as_ref(),
-            session,
-            clip.as_ref().map(|c| &c.update),
-        )
-    })?;
-    Ok((frame, image, lazy))
-}
-
-/// Draws `frame` from the session's clipmap textures when it has a
-/// clipmap, passed through otherwise.
-fn draw_session(
-    r: &mut GpuRenderer,
-    frame: &crate::frame::Frame,
-    clip: Option<&ClipFrame>,
-    session: &Session,
-    update: Option<&crate::clipmap::UpdateStats>,
-) -> Result<Image> {
-    match (clip, session.lod.clipmap()) {
-        (Some(c), Some(cm)) => r.draw(
-            frame,
-            Some(ClipDraw {
-                clipmap: cm,
-                meshes: &c.meshes,
-                world: &session.world,
-                update,
-                gpu_update: session.gpu_update == crate::scene::GpuUpdate::Gpu,
-                synthesis: session
-                    .synthesis
-                    .as_ref()
-                    .filter(|_| session.gpu_update == crate::scene::GpuUpdate::Gpu),
-            }),
-        ),
-        _ => r.draw(frame, None),
-    }
-}
-
-/// Renders a scene on the GPU (`render --backend gpu`).
-pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)> {
-    let mut passes = Passes::default();
-    let mut session = Session::new(scene, &mut passes)?;
-    // A new session's textures must be written in full.
-    r.forget_textures();
-    let (frame, image, lazy) = gpu_frame(r, &mut session, &scene.camera(), &mut passes)?;
-    let mut stats = render::stats(
-        &frame,
-        render::Backend::Gpu.name(),
-        Default::default(),
-        passes,
-    );
-    stats.lazy = lazy;
-    Ok((image, stats))
-}
-
 pub use crate::camera::path_camera;
+use crate::render::gpu::{draw_session, frame as gpu_frame};
 
 /// Renders `frames` views of the path on both back ends and compares each;
 /// the GPU's toroids are updated only by each frame's dirty rectangles.

@@ -71,10 +71,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
 
 #[cfg(feature = "gpu")]
 fn gpu_render(s: &Scene) -> anyhow::Result<(render::Image, render::RenderStats)> {
-    use terraclip::check::parity;
     use terraclip::gpu::{Api, Gpu, GpuRenderer};
     let mut r = GpuRenderer::new(Gpu::new(Api::Vulkan)?);
-    Ok(parity::render(&mut r, s)?)
+    Ok(terraclip::render::gpu::render(&mut r, s)?)
 }
 
 #[cfg(not(feature = "gpu"))]

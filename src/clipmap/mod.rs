@@ -10,9 +10,9 @@ pub(crate) mod morph;
 pub mod region;
 pub mod toroid;
 
+use crate::camera::Frustum;
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
-use crate::camera::Frustum;
 use crate::terrain::world::WorldMap;
 pub use footprint::{Footprints, Instance, ShapeId};
 pub use level::ClipLevel;
@@ -23,7 +23,7 @@ use serde::Serialize;
 use std::sync::Arc;
 use toroid::TexRects;
 
-crate::scene::names::named! {
+crate::names::named! {
     /// Index layout used to mesh each level.
     #[derive(Default)]
     pub enum Layout ("layout") {
@@ -53,21 +53,6 @@ pub struct ClipmapConfig {
     /// levels that do not fit are deactivated for the frame (LH04's graceful
     /// degradation). The coarsest level is always updated.
     pub texel_budget: Option<u64>,
-}
-
-impl ClipmapConfig {
-    /// The settings a scene's `[lod]` table gives; `morph` is whether the
-    /// scene lists geomorphing.
-    pub fn from_spec(l: &crate::scene::Lod, morph: bool) -> ClipmapConfig {
-        ClipmapConfig {
-            n: l.n,
-            levels: l.levels,
-            layout: l.layout,
-            transition: l.transition,
-            morph,
-            texel_budget: l.texel_budget,
-        }
-    }
 }
 
 impl Default for ClipmapConfig {

@@ -20,7 +20,7 @@
 //! comes from.
 
 use super::VaryingFile;
-use crate::scene::names::Effect;
+use crate::shade::Effect;
 
 /// The vertex and fragment shaders for a frame with `effects` and
 /// `varyings` (in `frame.json`'s order).

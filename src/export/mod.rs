@@ -24,6 +24,7 @@ pub mod exr;
 pub mod glb;
 pub mod glsl;
 
+use crate::camera::Camera;
 use crate::clipmap::Clipmap;
 use crate::error::{temp_path, Error, Result};
 use crate::frame::vertex::VertexUniforms;
@@ -31,12 +32,11 @@ use crate::frame::Frame;
 use crate::lod::{LevelInfo, LodMesh};
 use crate::pyramid::{Filter, Pyramid, PyramidLevel};
 use crate::render::Image;
-use crate::camera::Camera;
 use crate::scene::Effect;
 use crate::shade::normal_map::NormalMap;
 use crate::shade::shadows::Lightmap;
 use crate::shade::{Effects, Layout, Resources, ShadeParams};
-use crate::studies::shard::Shard;
+use crate::shard::Shard;
 use crate::terrain::world::WorldMap;
 use exr::FloatLayer;
 use serde::{Deserialize, Serialize};
@@ -1121,7 +1121,7 @@ const PACK_README: &str = include_str!("pack_readme.md");
 pub fn conformance_pack(golden: &Path, out: &Path) -> Result<PackWritten> {
     let mut all: Vec<(String, Vec<u8>)> = vec![];
     let mut scenes = vec![];
-    for path in crate::check::golden::scenes(golden)? {
+    for path in crate::scene::files_in(golden)? {
         let name = path
             .file_stem()
             .map_or("scene".into(), |s| s.to_string_lossy().into_owned());

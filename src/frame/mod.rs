@@ -7,10 +7,10 @@ pub mod stats;
 pub mod surface;
 pub mod vertex;
 
+use crate::camera::Camera;
 use crate::error::Result;
 use crate::lod::LodMesh;
 use crate::pyramid::{Filter, Pyramid};
-use crate::camera::Camera;
 use crate::shade::normal_map::{NormalMap, Sources};
 use crate::shade::shadows::Lightmap;
 use crate::shade::{self, fog, normals, wireframe, Effects, Layout, Resources, ShadeParams};

@@ -6,9 +6,9 @@
 //! written in the order a WGSL vertex shader will repeat (docs/raster-rules.md
 //! rule 7): no FMA, matrix columns summed from the last one.
 
+use crate::camera::Camera;
 use crate::clipmap::morph;
 use crate::lod::LodVertex;
-use crate::camera::Camera;
 use crate::terrain::world::WorldMap;
 use glam::DVec3;
 

@@ -4,7 +4,7 @@
 
 use crate::error::{Error, Result};
 
-crate::scene::names::named! {
+crate::names::named! {
     /// Which wgpu backend to open.
     pub enum Api ("graphics API") {
         /// Vulkan: lavapipe, or the GPU's driver.

@@ -25,7 +25,7 @@ use crate::clipmap::{Clipmap, LevelGeometry, LevelMesh, UpdateStats};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::raster::unorm8;
-use crate::render::Image;
+use crate::raster::Image;
 use crate::shade::{level_tint, Effects};
 use crate::terrain::world::WorldMap;
 use std::collections::HashMap;
@@ -84,7 +84,7 @@ impl TexelCheck {
         for (&a, &b) in cpu.iter().zip(gpu) {
             self.checked += 1;
             if a.to_bits() != b.to_bits() {
-                let ulp = crate::check::compare::ulp_distance(a, b);
+                let ulp = crate::raster::ulp_distance(a, b);
                 self.differ += 1;
                 self.max_ulp = self.max_ulp.max(ulp);
                 if heights {

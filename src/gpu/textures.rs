@@ -5,7 +5,7 @@ use super::Gpu;
 use crate::clipmap::toroid::{TexRect, TexRects, Toroid};
 use crate::clipmap::{Clipmap, UpdateStats};
 use crate::error::{Error, Result};
-use crate::render::Image;
+use crate::raster::Image;
 use crate::shade::normal_map::NormalMap;
 use crate::shade::normals;
 use crate::shade::shadows::Lightmap;

@@ -10,8 +10,8 @@
 use super::grid;
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::cull::{classify, Class};
+use crate::lod::LodScheme;
 use crate::pyramid::Pyramid;
-use crate::scene::LodScheme;
 use std::sync::Arc;
 
 /// The draping annulus's settings.

@@ -4,9 +4,9 @@
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
-use crate::pyramid::{Pyramid, PyramidLevel};
 use crate::camera::Frustum;
-use crate::scene::LodScheme;
+use crate::lod::LodScheme;
+use crate::pyramid::{Pyramid, PyramidLevel};
 use crate::terrain::world::WorldMap;
 use std::sync::Arc;
 

@@ -16,8 +16,8 @@
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::cull::{classify, Class};
+use crate::lod::LodScheme;
 use crate::pyramid::Pyramid;
-use crate::scene::LodScheme;
 use glam::DVec3;
 use std::sync::Arc;
 

@@ -5,8 +5,8 @@
 
 use super::{LevelInfo, Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::clipmap::{Clipmap, LevelMesh, UpdateStats};
+use crate::lod::LodScheme;
 use crate::pyramid::Pyramid;
-use crate::scene::LodScheme;
 
 /// The clipmap state a frame was made from, for a back end that draws from
 /// its own copy of the toroidal levels.

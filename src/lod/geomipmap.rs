@@ -19,8 +19,8 @@
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
+use crate::lod::LodScheme;
 use crate::pyramid::{Pyramid, PyramidLevel};
-use crate::scene::LodScheme;
 use rayon::prelude::*;
 use std::sync::Arc;
 

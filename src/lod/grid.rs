@@ -8,9 +8,9 @@
 //! triangles beyond the edge only collapse onto it.
 
 use super::{LodMesh, LodVertex};
+use crate::camera::Frustum;
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::PyramidLevel;
-use crate::camera::Frustum;
 use crate::terrain::world::WorldMap;
 
 /// The base-map vertex at (col, row), clamped onto the map.

@@ -11,14 +11,95 @@ pub mod geomipmap;
 mod grid;
 pub mod roam;
 
-use crate::clipmap::{Clipmap, ClipmapConfig};
+use crate::camera::{Camera, Frustum};
+use crate::clipmap::{Clipmap, ClipmapConfig, Layout};
 use crate::error::{Error, Result};
 use crate::pyramid::Pyramid;
-use crate::camera::{Camera, Frustum};
-use crate::scene::{self, LodScheme};
 use crate::terrain::world::WorldMap;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
+
+/// The scene's `[lod]`: the scheme and its settings (docs/lod-schemes.md lists which
+/// scheme reads which key). Without the table, the clipmap with its defaults.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// The scheme (default `clipmap`).
+    #[serde(default = "default_scheme")]
+    pub scheme: LodScheme,
+    /// Clipmap grid size, 2^k − 1 in 15..=4095 (default 63).
+    #[serde(default = "default_n")]
+    pub n: i64,
+    /// Clipmap level count; the most the map allows if absent.
+    pub levels: Option<usize>,
+    /// Clipmap mesh layout: strips (LH04, Brettell) or footprints (GPU Gems 2).
+    #[serde(default)]
+    pub layout: Layout,
+    /// Clipmap transition width in level texels; n/10 if absent, at most m − 3.
+    pub transition: Option<f32>,
+    /// Clipmap texels one update may rewrite; levels beyond it stay stale (LH04's graceful degradation).
+    pub texel_budget: Option<u64>,
+    /// GeoMipMapping: block side in vertices, 2^k + 1.
+    pub block: Option<usize>,
+    /// GeoMipMapping level choice: "linear", "exponential" or "error".
+    pub mode: Option<String>,
+    /// GeoMipMapping distance modes: distance (metres) of the first step.
+    pub distance: Option<f64>,
+    /// Screen-space error threshold in pixels (GeoMipMapping "error" mode,
+    /// ROAM).
+    pub tau: Option<f64>,
+    /// ROAM: triangle budget.
+    pub max_triangles: Option<usize>,
+    /// CDLOD: node side in cells (2^k).
+    pub grid: Option<usize>,
+    /// CDLOD: first range as a multiple of the finest node's diagonal.
+    pub range: Option<f64>,
+}
+
+fn default_scheme() -> LodScheme {
+    LodScheme::Clipmap
+}
+
+impl Default for Spec {
+    fn default() -> Self {
+        Spec {
+            scheme: default_scheme(),
+            n: default_n(),
+            levels: None,
+            layout: Layout::default(),
+            transition: None,
+            texel_budget: None,
+            block: None,
+            mode: None,
+            distance: None,
+            tau: None,
+            max_triangles: None,
+            grid: None,
+            range: None,
+        }
+    }
+}
+fn default_n() -> i64 {
+    63
+}
+
+crate::names::named! {
+    /// A level-of-detail scheme.
+    pub enum LodScheme ("scheme") {
+        /// Geometry clipmaps, this project.
+        Clipmap => "clipmap",
+        /// Every heightmap vertex: the accuracy reference.
+        BruteForce => "brute-force",
+        /// de Boer's GeoMipMapping.
+        Geomipmap => "geomipmap",
+        /// Duchaineau's ROAM.
+        Roam => "roam",
+        /// Strugar's CDLOD.
+        Cdlod => "cdlod",
+        /// A "draping" annulus.
+        Annulus => "annulus",
+    }
+}
 
 /// One vertex as the LOD scheme emits it: base-grid position, own height,
 /// the coarser surface's height there and the morph weight.
@@ -243,7 +324,7 @@ impl LodConfig {
     /// The scheme and settings a scene's `[lod]` table asks for, checked;
     /// `morph` is whether the scene lists geomorphing. Errors name the
     /// field (`lod.tau`, …); the caller adds the scene's name.
-    pub fn from_spec(l: &scene::Lod, morph: bool) -> Result<LodConfig> {
+    pub fn from_spec(l: &Spec, morph: bool) -> Result<LodConfig> {
         let pow2 = |field: &str, v: usize, lo: usize, hi: usize| -> Result<usize> {
             if v.is_power_of_two() && (lo..=hi).contains(&v) {
                 Ok(v)
@@ -265,7 +346,14 @@ impl LodConfig {
             }
         };
         Ok(match l.scheme {
-            LodScheme::Clipmap => LodConfig::Clipmap(ClipmapConfig::from_spec(l, morph)),
+            LodScheme::Clipmap => LodConfig::Clipmap(ClipmapConfig {
+                n: l.n,
+                levels: l.levels,
+                layout: l.layout,
+                transition: l.transition,
+                morph,
+                texel_budget: l.texel_budget,
+            }),
             LodScheme::BruteForce => LodConfig::BruteForce,
             LodScheme::Geomipmap => {
                 let block = l.block.unwrap_or(33);

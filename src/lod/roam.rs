@@ -14,8 +14,8 @@
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, View};
+use crate::lod::LodScheme;
 use crate::pyramid::Pyramid;
-use crate::scene::LodScheme;
 use rayon::prelude::*;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;

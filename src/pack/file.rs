@@ -246,21 +246,21 @@ pub fn read_levels(path: &Path) -> Result<(Header, Vec<PyramidLevel>)> {
 
 /// The pack a scene's terrain names, if its `file` is one (by its first
 /// bytes; cheap, so every session can ask).
-pub fn pack_path(spec: &crate::scene::Terrain, base_dir: &Path) -> Option<PathBuf> {
+pub fn pack_path(spec: &crate::terrain::Spec, base_dir: &Path) -> Option<PathBuf> {
     let path = base_dir.join(spec.file.as_ref()?);
     is_pack_file(&path).then_some(path)
 }
 
 /// The cell size a scene gets from a pack's header: its own override,
 /// else the pack's.
-pub fn cell_size(spec: &crate::scene::Terrain, header: &Header) -> [f64; 2] {
+pub fn cell_size(spec: &crate::terrain::Spec, header: &Header) -> [f64; 2] {
     spec.cell_size
         .as_ref()
         .map_or(header.cell_size, |c| c.pair())
 }
 
 /// The pack at `path` decoded whole, as a scene's terrain.
-pub fn read_terrain(spec: &crate::scene::Terrain, path: &Path) -> Result<PackTerrain> {
+pub fn read_terrain(spec: &crate::terrain::Spec, path: &Path) -> Result<PackTerrain> {
     let (header, levels) = read_levels(path)?;
     let filter = Filter::parse(&header.filter).map_err(|r| Error::file(path, r))?;
     Ok(PackTerrain {

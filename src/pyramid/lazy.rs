@@ -45,7 +45,7 @@ impl LazyBase {
     /// Level 0 for a scene's `[terrain]` table, and its world placement: a
     /// procedural terrain is not generated here, a file is loaded whole.
     pub fn for_terrain(
-        spec: &crate::scene::Terrain,
+        spec: &crate::terrain::Spec,
         base_dir: &std::path::Path,
     ) -> crate::Result<(LazyBase, WorldMap)> {
         match &spec.procedural {

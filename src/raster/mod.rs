@@ -267,6 +267,51 @@ impl Default for Options {
     }
 }
 
+/// A rendered image with its depth buffer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// RGBA8, row-major, top row first.
+    pub rgba: Vec<u8>,
+    /// Depth32Float as the rasteriser left it (1.0 where nothing drew).
+    pub depth: Vec<f32>,
+}
+
+impl Image {
+    /// PNG bytes of the colour image.
+    pub fn png(&self) -> crate::error::Result<Vec<u8>> {
+        use image::ImageEncoder;
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(
+                &self.rgba,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgba8,
+            )
+            .map_err(|e| crate::error::Error::value("png", e.to_string()))?;
+        Ok(out)
+    }
+}
+
+/// Depths are ≥ 0, so their bit patterns order like the values.
+/// Units in the last place between two f32 of any sign: their distance on
+/// the line of representable values (0 and −0 are 0 apart).
+pub fn ulp_distance(a: f32, b: f32) -> u64 {
+    let ordered = |v: f32| {
+        let b = v.to_bits();
+        if b >> 31 == 1 {
+            -((b & 0x7fff_ffff) as i64)
+        } else {
+            b as i64
+        }
+    };
+    (ordered(a) - ordered(b)).unsigned_abs()
+}
+
 /// Converts a colour channel to 8 bits: round half to even of clamp(c)·255,
 /// and 0 for NaN. Written so that it vectorises: max/min turn NaN into 0
 /// (clamp would keep it), and the integer in [0, 255] is read from the low

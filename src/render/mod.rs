@@ -2,6 +2,10 @@
 //! shade, every step a timed pass, and only the passes the scene's effects
 //! need.
 
+#[cfg(feature = "gpu")]
+pub mod gpu;
+
+use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::frame::stats::{Pass, Passes};
 use crate::frame::{Frame, FrameInput};
@@ -10,7 +14,6 @@ use crate::pack::reader::PackReader;
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
 use crate::raster::{self, Mesh, Options, Path, RasterStats};
-use crate::camera::Camera;
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
@@ -20,7 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Arc;
 
-crate::scene::names::named! {
+crate::names::named! {
     /// Which back end draws a frame.
     pub enum Backend ("back end") {
         /// The CPU reference rasteriser.
@@ -30,37 +33,11 @@ crate::scene::names::named! {
     }
 }
 
-/// A rendered image with its depth buffer.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// RGBA8, row-major, top row first.
-    pub rgba: Vec<u8>,
-    /// Depth32Float as the rasteriser left it (1.0 where nothing drew).
-    pub depth: Vec<f32>,
-}
-
-impl Image {
-    /// PNG bytes of the colour image.
-    pub fn png(&self) -> Result<Vec<u8>> {
-        let mut out = Vec::new();
-        image::codecs::png::PngEncoder::new(&mut out)
-            .write_image(
-                &self.rgba,
-                self.width,
-                self.height,
-                image::ExtendedColorType::Rgba8,
-            )
-            .map_err(|e| Error::value("png", e.to_string()))?;
-        Ok(out)
-    }
-}
+/// The image both back ends produce (it lives with the rasteriser, below
+/// the GPU back end that also makes one).
+pub use crate::raster::Image;
 
 use crate::synthesis::source::Continuation;
-use image::ImageEncoder;
 
 /// Statistics of one render (the CLI's JSON keys).
 #[derive(Clone, Debug, Serialize)]
@@ -255,7 +232,7 @@ impl Session {
         // A pack under a clipmap that reads only its windows is decoded
         // tile by tile as the windows reach them (LH04); other schemes and
         // the effects that read the whole map get it decoded whole.
-        let incremental = scene.lod.scheme == crate::scene::LodScheme::Clipmap
+        let incremental = scene.lod.scheme == crate::lod::LodScheme::Clipmap
             && !effects.shadows
             && !effects.normal_map;
         // Synthesised levels come before the map's own: the map needs as

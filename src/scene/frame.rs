@@ -1,7 +1,7 @@
 //! Framing a map: the camera a scene gets when it names none.
 
-use crate::camera::Camera;
 use super::Scene;
+use crate::camera::Camera;
 use crate::error::Result;
 use crate::terrain::world::WorldMap;
 use glam::DVec3;

@@ -5,12 +5,18 @@
 /// The camera, re-exported where the scene's `[camera]` is read.
 pub use crate::camera;
 mod frame;
-pub(crate) mod names;
 
 pub use frame::frame_terrain;
 
-pub use names::{Effect, LodScheme};
+/// The named choices a scene makes, declared by the stages that own them.
+pub use crate::lod::LodScheme;
+/// The scene's `[lod]`, owned by the LOD stage.
+pub use crate::lod::Spec as Lod;
+pub use crate::shade::Effect;
+/// The scene's `[terrain]`, owned by the terrain stage.
+pub use crate::terrain::{CellSize, Spec as Terrain};
 
+use crate::camera::Camera;
 use crate::clipmap::Layout;
 use crate::error::{Error, Result};
 use crate::lod::LodConfig;
@@ -18,8 +24,6 @@ use crate::pyramid::Filter;
 use crate::shade::Effects;
 /// The shading constants a scene's `[shading]` table sets.
 pub use crate::shade::ShadeParams;
-use crate::terrain::procedural::Procedural;
-use crate::camera::Camera;
 use glam::DVec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -32,42 +36,6 @@ pub const MAX_COORDINATE: f64 = 1e12;
 
 /// Largest image side accepted.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
-
-/// A cell size: one value for square cells, or `[x, y]`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(untagged)]
-pub enum CellSize {
-    /// Square cells, metres per side.
-    Square(f64),
-    /// Metres across (x) and down (y).
-    Xy([f64; 2]),
-}
-
-/// The scene's `[terrain]`: a heightmap file or a procedural map, and its placement.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Terrain {
-    /// Heightmap file, relative to the scene file.
-    pub file: Option<PathBuf>,
-    /// A seeded procedural map instead of a file.
-    pub procedural: Option<Procedural>,
-    /// Overrides the file's cell size (metres).
-    pub cell_size: Option<CellSize>,
-    /// Metres per height unit of the map (default 1).
-    #[serde(default = "one")]
-    pub vertical_scale: f64,
-    /// World (x, y) of the map's north-west corner (metres); cameras are
-    /// given in the same world coordinates.
-    #[serde(default)]
-    pub origin: [f64; 2],
-    /// Levels finer than the map, synthesised (LH04; docs/synthesis.md).
-    #[serde(default)]
-    pub synthesis: Option<crate::synthesis::source::Spec>,
-}
-
-fn one() -> f64 {
-    1.0
-}
 
 /// The scene's `[pyramid]`: how the coarser levels are made, and when.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -99,70 +67,6 @@ fn filter_from_name<'de, D: serde::Deserializer<'de>>(
 ) -> std::result::Result<Filter, D::Error> {
     let s = String::deserialize(d)?;
     Filter::parse(&s).map_err(serde::de::Error::custom)
-}
-
-/// The scene's `[lod]`: the scheme and its settings (docs/lod-schemes.md lists which
-/// scheme reads which key). Without the table, the clipmap with its defaults.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Lod {
-    /// The scheme (default `clipmap`).
-    #[serde(default = "default_scheme")]
-    pub scheme: LodScheme,
-    /// Clipmap grid size, 2^k − 1 in 15..=4095 (default 63).
-    #[serde(default = "default_n")]
-    pub n: i64,
-    /// Clipmap level count; the most the map allows if absent.
-    pub levels: Option<usize>,
-    /// Clipmap mesh layout: strips (LH04, Brettell) or footprints (GPU Gems 2).
-    #[serde(default)]
-    pub layout: Layout,
-    /// Clipmap transition width in level texels; n/10 if absent, at most m − 3.
-    pub transition: Option<f32>,
-    /// Clipmap texels one update may rewrite; levels beyond it stay stale (LH04's graceful degradation).
-    pub texel_budget: Option<u64>,
-    /// GeoMipMapping: block side in vertices, 2^k + 1.
-    pub block: Option<usize>,
-    /// GeoMipMapping level choice: "linear", "exponential" or "error".
-    pub mode: Option<String>,
-    /// GeoMipMapping distance modes: distance (metres) of the first step.
-    pub distance: Option<f64>,
-    /// Screen-space error threshold in pixels (GeoMipMapping "error" mode,
-    /// ROAM).
-    pub tau: Option<f64>,
-    /// ROAM: triangle budget.
-    pub max_triangles: Option<usize>,
-    /// CDLOD: node side in cells (2^k).
-    pub grid: Option<usize>,
-    /// CDLOD: first range as a multiple of the finest node's diagonal.
-    pub range: Option<f64>,
-}
-
-fn default_scheme() -> LodScheme {
-    LodScheme::Clipmap
-}
-
-impl Default for Lod {
-    fn default() -> Self {
-        Lod {
-            scheme: default_scheme(),
-            n: default_n(),
-            levels: None,
-            layout: Layout::default(),
-            transition: None,
-            texel_budget: None,
-            block: None,
-            mode: None,
-            distance: None,
-            tau: None,
-            max_triangles: None,
-            grid: None,
-            range: None,
-        }
-    }
-}
-fn default_n() -> i64 {
-    63
 }
 
 /// The scene's `[camera]`.
@@ -282,7 +186,7 @@ pub struct Scene {
     pub origin: String,
 }
 
-crate::scene::names::named! {
+crate::names::named! {
     /// Who fills the GPU's toroids: `[gpu] update`.
     pub enum GpuUpdate ("GPU update") {
         /// The CPU's finished texels, uploaded (the reference).
@@ -324,6 +228,21 @@ fn default_pyramid() -> PyramidSpec {
         lazy: false,
         budget: DEFAULT_LAZY_BUDGET,
     }
+}
+
+/// The scene files (`*.toml`) of a folder, sorted: a golden set, or any
+/// folder of scenes a sweep runs.
+pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        return Err(Error::file(dir, "no golden scenes (*.toml) found"));
+    }
+    Ok(v)
 }
 
 impl Scene {
@@ -393,7 +312,7 @@ impl Scene {
             }
         }
         if let Some(spec) = &self.terrain.synthesis {
-            spec.validate().map_err(|(k, r)| self.bad(k, r))?;
+            crate::synthesis::source::validate(spec).map_err(|(k, r)| self.bad(k, r))?;
             if self.pyramid.lazy {
                 return Err(self.bad(
                     "terrain.synthesis",
@@ -639,19 +558,28 @@ impl Scene {
     }
 }
 
-impl CellSize {
-    /// The (x, y) cell size, metres.
-    pub fn pair(&self) -> [f64; 2] {
-        match *self {
-            CellSize::Square(s) => [s, s],
-            CellSize::Xy(xy) => xy,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn names_round_trip_and_unknown_names_list_the_known_ones() {
+        for e in Effect::ALL {
+            assert_eq!(e.name().parse::<Effect>(), Ok(*e));
+        }
+        for s in LodScheme::ALL {
+            assert_eq!(s.to_string().parse::<LodScheme>(), Ok(*s));
+        }
+        assert_eq!(Effect::ALL.len(), 8);
+        assert_eq!(LodScheme::ALL.len(), 6);
+        let e = "bloom".parse::<Effect>().unwrap_err();
+        assert_eq!(
+            e,
+            "unknown effect 'bloom' (known: lambert, phong, fog, shadows, normal-map, \
+             level-tint, wireframe, morph)"
+        );
+        assert!("Clipmap".parse::<LodScheme>().is_err(), "names are exact");
+    }
 
     #[test]
     fn default_scene_parses() {

@@ -22,11 +22,34 @@ pub mod wireframe;
 
 use crate::lod::LevelInfo;
 use crate::raster::{unorm8, Path, Raster, NONE, RUN_LANES};
-use crate::scene::Effect;
 use normal_map::NormalMap;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shadows::Lightmap;
+
+crate::names::named! {
+    /// An effect a scene may list. One the scene does not list costs
+    /// nothing: its varyings are not computed and its shader code is
+    /// compiled out.
+    pub enum Effect ("effect") {
+        /// Diffuse lighting from per-vertex normals.
+        Lambert => "lambert",
+        /// A Blinn–Phong highlight.
+        Phong => "phong",
+        /// Exponential fog, per vertex.
+        Fog => "fog",
+        /// Holkner's ray-traced lightmap.
+        Shadows => "shadows",
+        /// Per-level normal maps at twice the resolution.
+        NormalMap => "normal-map",
+        /// A colour per clipmap level.
+        LevelTint => "level-tint",
+        /// Triangle edges.
+        Wireframe => "wireframe",
+        /// Geomorphing across level boundaries.
+        Morph => "morph",
+    }
+}
 
 /// The effects a scene listed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]

@@ -21,15 +21,15 @@
 //! `far_depth_pixels` the others. Brute-force renders are shared by all
 //! schemes of one run.
 
+use crate::camera::Camera;
 use crate::clipmap::Layout;
 use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::frame::surface::Surface;
 use crate::render::{self, Image, RenderOptions, Session};
-use crate::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
+use crate::shard::Shard;
 use crate::studies::metrics;
-use crate::studies::shard::Shard;
 use crate::studies::views;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};

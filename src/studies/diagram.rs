@@ -5,11 +5,11 @@
 //! A panel to the right of the map is the key: each level with its grid
 //! spacing in metres, what each shade and outline means, and a scale bar.
 
+use crate::camera::Camera;
 use crate::clipmap::{region, Clipmap};
 use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::render::Session;
-use crate::camera::Camera;
 use crate::scene::{LodScheme, Scene};
 use crate::studies::report::text::{self, Anchor};
 use crate::terrain::world::WorldMap;

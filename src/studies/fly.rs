@@ -6,8 +6,8 @@ use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, Session};
 use crate::scene::{LodScheme, Scene};
+use crate::shard::Shard;
 use crate::studies::metrics;
-use crate::studies::shard::Shard;
 use serde::{Deserialize, Serialize};
 
 /// One frame of a fly-through (`fly --json` `frames`).

@@ -4,7 +4,7 @@
 //! imports this module.
 
 use crate::error::{Error, Result};
-use crate::studies::shard::{interleave_items, ShardTag};
+use crate::shard::{interleave_items, ShardTag};
 use serde::Serialize;
 use serde_json::Value;
 use std::path::Path;
@@ -13,7 +13,7 @@ fn bad(what: &str, why: impl Into<String>) -> Error {
     Error::value(format!("merge: {what}"), why)
 }
 
-/// Joins the parts' JSON (each tagged by [`crate::studies::shard::tag`], named by `names` in
+/// Joins the parts' JSON (each tagged by [`crate::shard::tag`], named by `names` in
 /// errors) into what one run of the sweep prints: every part of one sweep,
 /// once each, with the same settings. With `dir`, also writes there the
 /// files one run writes that only the whole sweep can: `tradeoff`'s CSV
@@ -182,7 +182,7 @@ fn interleave(parts: &[&Value], names: &[&str], key: &str) -> Result<Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::studies::shard::{tag, Shard};
+    use crate::shard::{tag, Shard};
     use serde_json::json;
 
     /// Part `index` of `count` of a golden sweep holding `scenes`.

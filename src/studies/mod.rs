@@ -11,7 +11,9 @@ pub mod merge;
 pub mod metrics;
 pub(crate) mod report;
 pub mod scaling;
-pub mod shard;
+/// A sweep's parts: the studies take a [`shard::Shard`]; the type sits below
+/// every stage that is sharded.
+pub use crate::shard;
 pub mod synthesis;
 pub mod tradeoff;
 pub mod views;

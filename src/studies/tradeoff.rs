@@ -7,16 +7,16 @@
 //! supersampling, is measured the same way against a 64× render of the
 //! same mesh.
 
+use crate::camera::Camera;
 use crate::check::compare::{self, ImageError};
 use crate::clipmap::Layout;
 use crate::error::Result;
 use crate::frame::stats::Passes;
 use crate::pyramid::Filter;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
-use crate::camera::Camera;
 use crate::scene::{Effect, LodScheme, Scene};
+use crate::shard::Shard;
 use crate::studies::metrics;
-use crate::studies::shard::Shard;
 use crate::studies::views::{self, NamedView};
 use serde::{Deserialize, Serialize};
 
@@ -217,8 +217,8 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
     if !quick {
         // ATLOD's distance modes, at steps of a few blocks.
         let cell = scene.terrain.cell_size.as_ref().map_or(10.0, |c| match c {
-            crate::scene::CellSize::Square(s) => *s,
-            crate::scene::CellSize::Xy(xy) => xy[0].max(xy[1]),
+            crate::terrain::CellSize::Square(s) => *s,
+            crate::terrain::CellSize::Xy(xy) => xy[0].max(xy[1]),
         });
         for mode in ["linear", "exponential"] {
             for blocks in [2.0, 8.0] {
@@ -464,7 +464,7 @@ pub fn merge(parts: &[Report]) -> std::result::Result<Report, String> {
         }
     }
     let lists: Vec<&[Row]> = parts.iter().map(|p| p.rows.as_slice()).collect();
-    let rows = crate::studies::shard::interleave_items(&lists)?;
+    let rows = crate::shard::interleave_items(&lists)?;
     Ok(Report {
         title: first.title.clone(),
         ..finish(

@@ -2,8 +2,8 @@
 //! terrain (cracks), the wide and low-FOV view sets ATLOD measured error on
 //! (tradeoff); the straight paths are [`crate::camera::path`].
 
-use crate::render::Session;
 use crate::camera::Camera;
+use crate::render::Session;
 use glam::DVec3;
 
 /// xorshift64*, so view sets are the same on every machine.
@@ -119,4 +119,3 @@ pub fn atlod_views(session: &Session, template: &Camera) -> Vec<NamedView> {
     }
     out
 }
-

@@ -32,34 +32,22 @@ const TILE: usize = 128;
 /// over all of it.
 const MEASURE: usize = 1024;
 
-/// What `[terrain] synthesis = { levels, roughness, seed }` asks for.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Spec {
-    /// Levels added, 1..=[`MAX_LEVELS`].
-    pub levels: usize,
-    /// The roughness exponent H; measured from the map when `None`.
-    #[serde(default)]
-    pub roughness: Option<f64>,
-    /// The noise table's seed (default 0).
-    #[serde(default)]
-    pub seed: u64,
-}
+/// What `[terrain] synthesis = { levels, roughness, seed }` asks for (data
+/// the terrain's spec holds).
+pub use crate::terrain::SynthesisSpec as Spec;
 
-impl Spec {
-    /// Checks the values serde's types cannot; errors name the key.
-    pub fn validate(&self) -> Result<(), (&'static str, String)> {
-        if !(1..=MAX_LEVELS).contains(&self.levels) {
-            return Err((
-                "terrain.synthesis.levels",
-                format!("{}: must be within 1..={MAX_LEVELS}", self.levels),
-            ));
-        }
-        if let Some(h) = self.roughness {
-            super::check_roughness(h).map_err(|r| ("terrain.synthesis.roughness", r))?;
-        }
-        Ok(())
+/// Checks the values serde's types cannot; errors name the key.
+pub fn validate(spec: &Spec) -> Result<(), (&'static str, String)> {
+    if !(1..=MAX_LEVELS).contains(&spec.levels) {
+        return Err((
+            "terrain.synthesis.levels",
+            format!("{}: must be within 1..={MAX_LEVELS}", spec.levels),
+        ));
     }
+    if let Some(h) = spec.roughness {
+        super::check_roughness(h).map_err(|r| ("terrain.synthesis.roughness", r))?;
+    }
+    Ok(())
 }
 
 /// How the synthesised levels continue the map: its finest detail, the
@@ -169,7 +157,7 @@ impl Synthesised {
         spec: &Spec,
         path: &Path,
     ) -> Result<(Synthesised, Continuation), String> {
-        spec.validate().map_err(|(k, r)| format!("{k}: {r}"))?;
+        validate(spec).map_err(|(k, r)| format!("{k}: {r}"))?;
         if base.finer_levels() > 0 {
             return Err("the map's levels are synthesised already".into());
         }

@@ -15,11 +15,13 @@ pub mod procedural;
 mod raw;
 pub mod rows;
 mod sidecar;
+mod spec;
 mod tiff_file;
 pub mod world;
 pub mod write;
 
 use crate::error::{Error, Result};
+pub use spec::{CellSize, Spec, SynthesisSpec};
 use std::path::Path;
 
 /// The largest heightmap accepted, in texels (2^28 ≈ 268 M, about 1.3 GiB with
@@ -240,7 +242,7 @@ pub(crate) fn named<T>(path: &Path, r: std::result::Result<T, String>) -> Result
 /// The terrain a scene's `[terrain]` table names, loaded from its file
 /// (relative to `base_dir`) or generated, with the table's cell size
 /// applied. Errors name the file, or the field (`terrain.procedural`).
-pub fn load(spec: &crate::scene::Terrain, base_dir: &Path) -> Result<Heightmap> {
+pub fn load(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Heightmap> {
     let mut h = match (&spec.file, &spec.procedural) {
         (Some(f), _) => Heightmap::load(&base_dir.join(f))?,
         (_, Some(p)) => p

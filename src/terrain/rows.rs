@@ -42,7 +42,7 @@ pub trait RowSource: Sync {
 }
 
 /// The source a scene's `[terrain]` table names (its cell size applied).
-pub fn for_terrain(spec: &crate::scene::Terrain, base_dir: &Path) -> Result<Box<dyn RowSource>> {
+pub fn for_terrain(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Box<dyn RowSource>> {
     let cell = spec.cell_size.as_ref().map(|c| c.pair());
     let src: Box<dyn RowSource> = match (&spec.file, &spec.procedural) {
         (Some(f), _) => open(&base_dir.join(f))?,

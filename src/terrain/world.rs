@@ -24,7 +24,7 @@ pub struct WorldMap {
 impl WorldMap {
     /// The placement a scene's `[terrain]` table gives a map of cell size
     /// `cell`: its vertical scale and origin.
-    pub fn for_terrain(spec: &crate::scene::Terrain, cell: [f64; 2]) -> Self {
+    pub fn for_terrain(spec: &crate::terrain::Spec, cell: [f64; 2]) -> Self {
         WorldMap::new(cell, spec.vertical_scale).placed_at(spec.origin)
     }
 

@@ -1,8 +1,9 @@
-//! The named choices a scene or the command line makes: effects and LOD
-//! schemes here, back ends and graphics APIs where those stages live. Each
-//! is an enum whose names are written once, in the `named!` invocation that
-//! declares it; parsing (scene files and flags alike), printing, the lists
-//! in error messages and clap's choices all come from that one list.
+//! The named choices a scene or the command line makes (effects, LOD
+//! schemes, layouts, back ends, graphics APIs), each declared where its
+//! stage lives. Each is an enum whose names are written once, in the
+//! `named!` invocation that declares it; parsing (scene files and flags
+//! alike), printing, the lists in error messages and clap's choices all
+//! come from that one list. It sits below every stage.
 
 /// Declares a `Copy` enum with one name per variant, and with it `ALL`,
 /// `name()`, `FromStr` (whose error lists the names), serde (as the name)
@@ -77,71 +78,4 @@ macro_rules! named {
         }
     };
 }
-#[allow(unused_imports)] // for the stages that declare their own choices
 pub(crate) use named;
-
-named! {
-    /// An effect a scene may list. One the scene does not list costs
-    /// nothing: its varyings are not computed and its shader code is
-    /// compiled out.
-    pub enum Effect ("effect") {
-        /// Diffuse lighting from per-vertex normals.
-        Lambert => "lambert",
-        /// A Blinn–Phong highlight.
-        Phong => "phong",
-        /// Exponential fog, per vertex.
-        Fog => "fog",
-        /// Holkner's ray-traced lightmap.
-        Shadows => "shadows",
-        /// Per-level normal maps at twice the resolution.
-        NormalMap => "normal-map",
-        /// A colour per clipmap level.
-        LevelTint => "level-tint",
-        /// Triangle edges.
-        Wireframe => "wireframe",
-        /// Geomorphing across level boundaries.
-        Morph => "morph",
-    }
-}
-
-named! {
-    /// A level-of-detail scheme.
-    pub enum LodScheme ("scheme") {
-        /// Geometry clipmaps, this project.
-        Clipmap => "clipmap",
-        /// Every heightmap vertex: the accuracy reference.
-        BruteForce => "brute-force",
-        /// de Boer's GeoMipMapping.
-        Geomipmap => "geomipmap",
-        /// Duchaineau's ROAM.
-        Roam => "roam",
-        /// Strugar's CDLOD.
-        Cdlod => "cdlod",
-        /// A "draping" annulus.
-        Annulus => "annulus",
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn names_round_trip_and_unknown_names_list_the_known_ones() {
-        for e in Effect::ALL {
-            assert_eq!(e.name().parse::<Effect>(), Ok(*e));
-        }
-        for s in LodScheme::ALL {
-            assert_eq!(s.to_string().parse::<LodScheme>(), Ok(*s));
-        }
-        assert_eq!(Effect::ALL.len(), 8);
-        assert_eq!(LodScheme::ALL.len(), 6);
-        let e = "bloom".parse::<Effect>().unwrap_err();
-        assert_eq!(
-            e,
-            "unknown effect 'bloom' (known: lambert, phong, fog, shadows, normal-map, \
-             level-tint, wireframe, morph)"
-        );
-        assert!("Clipmap".parse::<LodScheme>().is_err(), "names are exact");
-    }
-}
