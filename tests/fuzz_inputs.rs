@@ -223,7 +223,7 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("seed 4 (tif)", 544),
     ("asc", 147),
     ("raw f32 + sidecar", 334),
-    ("scene", 125),
+    ("scene", 130),
     ("scene over a pack", 32),
     ("geographic tif", 617),
     ("pack", 2),
