@@ -8,7 +8,7 @@ use terraclip::render::{build_frame, draw, RenderOptions};
 use terraclip::scene::Scene;
 
 fn bench(c: &mut Criterion) {
-    let mut s = Scene::default_scene();
+    let mut s = Scene::bench_scene();
     s.image.width = 1920;
     s.image.height = 1080;
     let frame = build_frame(&s, &mut Passes::default()).expect("default scene");

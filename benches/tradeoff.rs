@@ -8,7 +8,7 @@ use terraclip::render::Session;
 use terraclip::scene::Scene;
 
 fn bench(c: &mut Criterion) {
-    let base = Scene::default_scene();
+    let base = Scene::bench_scene();
     for spec in terraclip::studies::cracks::all() {
         let scene = base.with_lod(&spec).expect("valid scheme");
         let mut s = Session::new(&scene, &mut Passes::default()).expect("session");

@@ -124,7 +124,7 @@ fn culled_triangle_counts_are_exact() {
     use terraclip::studies::views;
     let mut counts = vec![];
     for layout in ["clipmap/strips", "clipmap/footprints"] {
-        let mut scene = Scene::default_scene().with_lod(layout).unwrap();
+        let mut scene = Scene::bench_scene().with_lod(layout).unwrap();
         scene.image.width = 320;
         scene.image.height = 180;
         let mut session = Session::new(&scene, &mut Default::default()).unwrap();

@@ -161,17 +161,15 @@ fn tmp(name: &str) -> PathBuf {
     d.join(name)
 }
 
-/// The default scene with a lazy pyramid, so the lazy keys show.
+/// The benchmark's scene with a lazy pyramid, so the lazy keys show.
 fn lazy_scene() -> PathBuf {
-    let base = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/src/scene/default.toml"
-    ))
-    .unwrap();
-    let scene = base.replace(
-        "filter = \"sinc-blackman\"",
-        "filter = \"sinc-blackman\"\nlazy = true\nbudget = 20000",
-    ) + "\n[shading]\nheight_range = [-300.0, 300.0]\n";
+    let scene = terraclip::scene::BENCH_SCENE
+        .replace(
+            "filter = \"sinc-blackman\"",
+            "filter = \"sinc-blackman\"\nlazy = true\nbudget = 20000",
+        )
+        .replace("[shading]\n", "[shading]\nheight_range = [-300.0, 300.0]\n");
+    assert!(scene.contains("height_range"));
     assert!(scene.contains("lazy = true"));
     let p = tmp("lazy.toml");
     std::fs::write(&p, scene).unwrap();

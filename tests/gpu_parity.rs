@@ -414,7 +414,7 @@ fn brute_force_passthrough_matches_the_cpu() {
 fn a_lazy_pyramid_path_matches_as_coarse_levels_join() {
     let Some(mut r) = renderer() else { return };
     let exact = r.gpu.exact_expected();
-    let mut scene = Scene::default_scene();
+    let mut scene = Scene::bench_scene();
     scene.pyramid.lazy = true;
     scene.pyramid.budget = 100_000;
     scene.shading.height_range = Some([-300.0, 300.0]);

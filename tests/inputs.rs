@@ -270,7 +270,7 @@ fn tiff_and_tga_round_trip() {
 
 #[test]
 fn bad_scenes_are_clean_errors() {
-    let base = terraclip::scene::DEFAULT_SCENE;
+    let base = terraclip::scene::BENCH_SCENE;
     let out = tmp("o.png");
     // Writes a scene variant and checks `diagram` rejects it cleanly.
     let rejects = |name: &str, text: &str, reason: &str| {

@@ -11,7 +11,7 @@ use terraclip::terrain::procedural::Procedural;
 /// The default scene on a procedural `size`² map with a fixed colour ramp,
 /// lazy or not.
 fn scene(size: usize, lazy: bool, budget: u64) -> Scene {
-    let mut s = Scene::default_scene();
+    let mut s = Scene::bench_scene();
     s.terrain.procedural = Some(Procedural::new(20041, size, size));
     s.pyramid.lazy = lazy;
     s.pyramid.budget = budget;

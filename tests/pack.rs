@@ -652,7 +652,7 @@ fn a_flight_over_a_pack_decoded_as_it_goes_renders_the_map_itself() {
     use terraclip::pack::stream;
     use terraclip::terrain::procedural::Procedural;
     use terraclip::terrain::rows::ProceduralRows;
-    let mut direct = terraclip::scene::Scene::default_scene();
+    let mut direct = terraclip::scene::Scene::bench_scene();
     let p = Procedural::new(20041, 4097, 513);
     direct.terrain.procedural = Some(p.clone());
     direct.camera.position = [2000.0, -2500.0, 900.0];

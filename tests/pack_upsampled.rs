@@ -226,7 +226,7 @@ fn a_flight_over_an_upsampled_pack_decoded_as_it_goes_holds_the_whole_decode() {
     o.predictor = Predictor::Upsampled;
     stream::pack(&ProceduralRows::new(p).unwrap(), &path, &o, &mut |_, _| {}).unwrap();
     let (_, whole) = file::read_levels(&path).unwrap();
-    let mut scene = terraclip::scene::Scene::default_scene();
+    let mut scene = terraclip::scene::Scene::bench_scene();
     (scene.terrain.procedural, scene.terrain.file) = (None, Some(path));
     scene.camera.position = [2000.0, -2500.0, 900.0];
     scene.camera.look_at = Some([4000.0, -2500.0, 150.0]);

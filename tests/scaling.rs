@@ -19,7 +19,7 @@ fn ok_json(out: std::process::Output) -> serde_json::Value {
 
 /// The default scene over a procedural `size`² map, eye over its centre.
 fn scene(size: usize, lod: &str) -> Scene {
-    let mut s = Scene::default_scene();
+    let mut s = Scene::bench_scene();
     s.terrain.procedural = Some(Procedural::new(20041, size, size));
     s.lod.scheme = lod.parse().unwrap();
     s.lod.n = 63;
@@ -83,7 +83,7 @@ fn scaling_times_packs_in_place_of_sizes() {
         packs.push(path);
     }
     let mut opts = figures_options();
-    let mut base = Scene::default_scene();
+    let mut base = Scene::bench_scene();
     base.camera.position = [1280.0, -1280.0, 500.0];
     base.camera.look_at = Some([1800.0, -1900.0, 100.0]);
     let maps = scaling::run(&base, &opts, |_| {}).unwrap();
@@ -124,7 +124,7 @@ fn figures_options() -> Options {
 #[test]
 fn scaling_report_figures() {
     let opts = figures_options();
-    let mut base = Scene::default_scene();
+    let mut base = Scene::bench_scene();
     base.camera.position = [1280.0, -1280.0, 500.0];
     base.camera.look_at = Some([1800.0, -1900.0, 100.0]);
     let r = scaling::run(&base, &opts, |_| {}).unwrap();
@@ -278,7 +278,7 @@ fn bad_scaling_options_are_errors() {
         ),
     ];
     for (opts, word) in cases {
-        let err = scaling::run(&Scene::default_scene(), &opts, |_| {}).unwrap_err();
+        let err = scaling::run(&Scene::bench_scene(), &opts, |_| {}).unwrap_err();
         assert!(err.to_string().contains(word), "{err} (wanted '{word}')");
     }
 }
@@ -350,7 +350,7 @@ fn peak_memory_is_under_twice_the_map_and_pyramid() {
 fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("pack-rss");
     std::fs::create_dir_all(&dir).unwrap();
-    let default = include_str!("../src/scene/default.toml");
+    let default = include_str!("../benches/scenes/bench.toml");
     let peak = |side: usize, band_mib: u32| -> f64 {
         let scene = dir.join(format!("p{side}.toml"));
         let text = default.replace(
@@ -425,7 +425,7 @@ fn a_streaming_pack_holds_a_few_bands_whatever_the_map() {
 fn a_flight_over_a_pack_holds_what_its_windows_need() {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("fly-rss");
     std::fs::create_dir_all(&dir).unwrap();
-    let default = include_str!("../src/scene/default.toml");
+    let default = include_str!("../benches/scenes/bench.toml");
     let run = |args: &[&str]| -> serde_json::Value {
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_terraclip"))
             .env("RAYON_NUM_THREADS", "2")

@@ -151,7 +151,7 @@ fn stateful_crack_survey_shards_merged_equal_one_run() {
     let dir = common::fresh_tmp("shard", "cracks-stateful");
     std::fs::create_dir_all(&dir).unwrap();
     let scene = dir.join("budget.toml");
-    let text = include_str!("../src/scene/default.toml")
+    let text = include_str!("../benches/scenes/bench.toml")
         .replace("[lod]\n", "[lod]\ntexel_budget = 3000\n");
     assert!(text.contains("texel_budget = 3000"));
     std::fs::write(&scene, text).unwrap();

@@ -154,7 +154,7 @@ fn amplitudes_continue_the_maps_detail() {
 /// frames on one thread as on two, a walk never cracks, and the images
 /// differ from the map's without synthesis.
 fn close_scene(levels: Option<usize>) -> Scene {
-    let mut s = Scene::default_scene();
+    let mut s = Scene::bench_scene();
     s.terrain.procedural = Some(Procedural::new(7, 257, 257));
     s.terrain.cell_size = Some(terraclip::scene::CellSize::Square(16.0));
     s.terrain.synthesis = levels.map(spec);

@@ -1,12 +1,12 @@
 //! `terraclip bench`: CPU and GPU frames per second, side by side.
 
-use super::load_scene;
+use super::load_bench_scene;
 use std::path::PathBuf;
 use terraclip::scene::Overrides;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file; the embedded default scene if omitted.
+    /// Scene file; the benchmark's scene (benches/scenes/bench.toml) if omitted.
     pub scene: Option<PathBuf>,
     /// Frames per timed repeat.
     #[arg(long, default_value_t = 10)]
@@ -36,7 +36,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.frames == 0 || a.repeats == 0 {
         anyhow::bail!("--frames and --repeats must be at least 1");
     }
-    let mut s = load_scene(&a.scene)?;
+    let mut s = load_bench_scene(&a.scene)?;
     s.apply(&Overrides {
         size: Some(a.size),
         ..Default::default()

@@ -1,6 +1,6 @@
 //! `terraclip cracks`: a crack survey over random views.
 
-use super::{load_scene, progress};
+use super::{load_bench_scene, progress};
 use std::path::PathBuf;
 use terraclip::render::Image;
 use terraclip::scene::{Overrides, Scene};
@@ -9,7 +9,7 @@ use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file; the embedded default scene if omitted.
+    /// Scene file; the benchmark's scene (benches/scenes/bench.toml) if omitted.
     pub scene: Option<PathBuf>,
     /// Random views above the terrain.
     #[arg(long, default_value_t = 100)]
@@ -48,7 +48,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.views == 0 {
         anyhow::bail!("--views must be at least 1");
     }
-    let s = load_scene(&a.scene)?;
+    let s = load_bench_scene(&a.scene)?;
     let schemes = scheme_list(&a.lod, &s);
     let bar = progress(a.views, "cracks");
     let r = cracks::survey(&s, &schemes, a.views, a.size, a.shard, || bar.inc(1))?;

@@ -8,7 +8,7 @@ use terraclip::studies::shard::{self, Shard};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file; the embedded default scene if omitted.
+    /// Scene file; the benchmark's scene (benches/scenes/bench.toml) if omitted.
     pub scene: Option<PathBuf>,
     #[arg(long, default_value_t = 60)]
     pub frames: usize,
@@ -54,7 +54,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.gif && !a.shard.is_whole() {
         anyhow::bail!("--gif is of the whole flight: it does not take --shard (each part writes its frames' PNGs)");
     }
-    let s = a.args.scene(&a.scene)?;
+    let s = a.args.bench_scene(&a.scene)?;
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
     }

@@ -90,7 +90,16 @@ impl SceneArgs {
     /// A heightmap given without `--camera` or `--look-at` is framed: the
     /// scene's camera, far plane and fog were placed for its own terrain.
     pub fn scene(&self, path: &Option<PathBuf>) -> anyhow::Result<Scene> {
-        let mut s = load_scene(path)?;
+        self.scene_over(load_scene(path)?)
+    }
+
+    /// [`SceneArgs::scene`] for a command that measures: without a path,
+    /// the benchmark's scene ([`load_bench_scene`]).
+    pub fn bench_scene(&self, path: &Option<PathBuf>) -> anyhow::Result<Scene> {
+        self.scene_over(load_bench_scene(path)?)
+    }
+
+    fn scene_over(&self, mut s: Scene) -> anyhow::Result<Scene> {
         s.apply(&self.overrides())?;
         if self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none() {
             terraclip::scene::frame_terrain(&mut s, false)?;
@@ -114,6 +123,17 @@ pub fn load_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
     match path {
         Some(p) => Scene::load(p),
         None => Ok(Scene::default_scene()),
+    }
+}
+
+/// The scene at `path`, or the benchmark's (`benches/scenes/bench.toml`):
+/// the commands that measure (`bench`, `scaling`, `cracks`, `tradeoff`,
+/// `fly`) default to it, so that their figures compare with the docs'
+/// whatever the default picture shows.
+pub fn load_bench_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
+    match path {
+        Some(p) => Scene::load(p),
+        None => Ok(Scene::bench_scene()),
     }
 }
 

@@ -1,13 +1,13 @@
 //! `terraclip scaling`: what grows with the terrain.
 
-use super::{load_scene, progress};
+use super::{load_bench_scene, progress};
 use std::path::PathBuf;
 
 /// `terraclip scaling`'s settings.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene whose camera, shading and seed are used; the embedded default
-    /// scene if omitted.
+    /// Scene whose camera, shading and seed are used; the benchmark's scene
+    /// (benches/scenes/bench.toml) if omitted.
     pub scene: Option<PathBuf>,
     /// Square terrain sizes in texels per side, comma-separated, smallest
     /// first.
@@ -68,7 +68,7 @@ impl Args {
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     use terraclip::studies::scaling;
-    let s = load_scene(&args.scene)?;
+    let s = load_bench_scene(&args.scene)?;
     let opts = args.options();
     let bar = progress(0, "scaling");
     let r = scaling::run(&s, &opts, |label| bar.set_message(label.to_string()))?;

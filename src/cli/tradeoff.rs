@@ -8,7 +8,7 @@ use terraclip::studies::tradeoff;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Scene file; the embedded default scene if omitted.
+    /// Scene file; the benchmark's scene (benches/scenes/bench.toml) if omitted.
     pub scene: Option<PathBuf>,
     #[arg(long, default_value = "target/tradeoff")]
     pub out: PathBuf,
@@ -39,7 +39,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "--size must be within 1..=2048 per side (64× supersampling multiplies it by 8)"
         );
     }
-    let s = a.args.scene(&a.scene)?;
+    let s = a.args.bench_scene(&a.scene)?;
     let opts = tradeoff::Options {
         size,
         path_frames: a.path_frames,

@@ -86,9 +86,10 @@ pub fn frame_terrain(scene: &mut Scene, keep_fog: bool) -> Result<()> {
     // Depth32Float keeps about 2^-23 of depth, so the near plane scales
     // with the far one: 1e-5 of it keeps the map's nearest edge resolved.
     c.near = (c.far * 1e-5).max(0.01);
-    // At least 80 % of the colour left at the map's far edge.
+    // The far plane lies at twice the map's far edge, so the default fog
+    // leaves exp(-0.2), 82 %, of the colour there.
     if !keep_fog {
-        scene.shading.fog_density = 1.0 / (5.0 * (dist + span));
+        scene.shading.fog_density = crate::shade::fog::density_for_far(c.far);
     }
     scene.validate()
 }

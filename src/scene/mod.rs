@@ -31,6 +31,11 @@ use std::path::{Path, PathBuf};
 /// The embedded default scene (procedural, no files needed).
 pub const DEFAULT_SCENE: &str = include_str!("default.toml");
 
+/// The benchmark's scene (`benches/scenes/bench.toml`): the speed figures
+/// are measured on it and the tests build on it, so it stays fixed while
+/// the default scene is free to show what terraclip does.
+pub const BENCH_SCENE: &str = include_str!("../../benches/scenes/bench.toml");
+
 /// Largest world coordinate accepted (metres).
 pub const MAX_COORDINATE: f64 = 1e12;
 
@@ -167,9 +172,8 @@ pub struct Scene {
     #[serde(default)]
     pub image: ImageSpec,
     /// The effects to simulate; anything not listed is not computed.
-    /// Without the key, the default scene's `lambert`, `fog` and `morph`
-    /// (the morph closes the seams between clipmap levels); `effects = []`
-    /// asks for none.
+    /// Without the key, `lambert`, `fog` and `morph` (the morph closes the
+    /// seams between clipmap levels); `effects = []` asks for none.
     #[serde(default = "default_effects")]
     pub effects: Vec<Effect>,
     /// `[shading]`: sun, fog and material constants.
@@ -248,7 +252,9 @@ pub fn files_in(dir: &Path) -> Result<Vec<PathBuf>> {
 impl Scene {
     /// Parses scene text; `origin` names the source in errors.
     /// A scene without a `[camera]` gets its map framed, which reads the
-    /// map's size and relief (a pack's header, or the whole file).
+    /// map's size and relief (a pack's header, or the whole file). Without
+    /// a `fog_density`, the fog follows the far plane: 0.4 / far, which
+    /// leaves 67 % of a colour at the far plane.
     pub fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
         let invalid = |e: toml::de::Error| {
             Error::file(origin, format!("invalid scene: {}", e.to_string().trim()))
@@ -258,12 +264,14 @@ impl Scene {
         s.base_dir = base_dir.to_path_buf();
         s.origin = origin.to_string();
         s.validate()?;
+        let fog_given = table
+            .get("shading")
+            .and_then(|t| t.get("fog_density"))
+            .is_some();
         if !table.contains_key("camera") {
-            let fog_given = table
-                .get("shading")
-                .and_then(|t| t.get("fog_density"))
-                .is_some();
             frame_terrain(&mut s, fog_given)?;
+        } else if !fog_given {
+            s.shading.fog_density = crate::shade::fog::density_for_far(s.camera.far);
         }
         Ok(s)
     }
@@ -279,6 +287,12 @@ impl Scene {
     pub fn default_scene() -> Self {
         Self::parse(DEFAULT_SCENE, "<default scene>", Path::new("."))
             .expect("the embedded default scene is valid")
+    }
+
+    /// The benchmark's scene ([`BENCH_SCENE`]).
+    pub fn bench_scene() -> Self {
+        Self::parse(BENCH_SCENE, "benches/scenes/bench.toml", Path::new("."))
+            .expect("the benchmark's scene is valid")
     }
 
     fn bad(&self, field: &str, reason: impl Into<String>) -> Error {
@@ -584,11 +598,13 @@ mod tests {
     #[test]
     fn default_scene_parses() {
         let s = Scene::default_scene();
-        assert_eq!(s.lod.n, 63);
+        assert_eq!(s.lod.n, 127);
+        assert!(s.has(Effect::Shadows));
+        assert_eq!(Scene::bench_scene().lod.n, 63);
     }
 
-    /// A scene of only `[terrain]` is the clipmap at 960 × 540 with the
-    /// default scene's effects, its camera framing the map from the south
+    /// A scene of only `[terrain]` is the clipmap at 960 × 540 with
+    /// lambert, fog and morph, its camera framing the map from the south
     /// (looking at the map's centre, from outside it) and fog scaled to
     /// it; a density the scene gives is kept.
     #[test]
@@ -598,7 +614,7 @@ mod tests {
         let s = Scene::parse(only, "only.toml", Path::new(".")).unwrap();
         assert_eq!(s.lod, Lod::default());
         assert_eq!((s.image.width, s.image.height), (960, 540));
-        assert_eq!(s.effects, Scene::default_scene().effects);
+        assert_eq!(s.effects, default_effects());
         let [x, y, z] = s.camera.look_at.unwrap();
         assert_eq!([x, y], [640.0, -320.0], "the map's centre");
         let eye = s.camera.position;
@@ -621,7 +637,7 @@ mod tests {
 
     #[test]
     fn unknown_key_reports_line_and_column() {
-        let text = DEFAULT_SCENE.replace("fov = 60.0", "fov = 60.0\nzoom = 2");
+        let text = BENCH_SCENE.replace("fov = 60.0", "fov = 60.0\nzoom = 2");
         let e = Scene::parse(&text, "x.toml", Path::new("."))
             .unwrap_err()
             .to_string();
@@ -632,12 +648,12 @@ mod tests {
 
     #[test]
     fn bad_n_and_unknown_effect_are_errors() {
-        let t = DEFAULT_SCENE.replace("n = 63", "n = 64");
+        let t = BENCH_SCENE.replace("n = 63", "n = 64");
         assert!(Scene::parse(&t, "s", Path::new("."))
             .unwrap_err()
             .to_string()
             .contains("2^k"));
-        let t = DEFAULT_SCENE.replace("\"fog\"", "\"bloom\"");
+        let t = BENCH_SCENE.replace("\"fog\"", "\"bloom\"");
         assert!(Scene::parse(&t, "s", Path::new("."))
             .unwrap_err()
             .to_string()

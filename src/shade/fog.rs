@@ -8,6 +8,18 @@
 //! built from bits, which the WGSL vertex shader repeats operation for
 //! operation (`src/gpu/shaders/terrain.wgsl`, `fog_exp2`).
 
+/// The optical depth the default fog reaches at the far plane: exp(−0.4)
+/// leaves 67 % of a colour there, so the farthest terrain fades but stays
+/// visible whatever the map's size. A fixed density (1/12 km, the old
+/// default) turned a map seen from 14 km up into fog colour alone.
+pub const DEPTH_AT_FAR: f64 = 0.4;
+
+/// The fog density of a scene that gives none: [`DEPTH_AT_FAR`] over the
+/// far plane's distance.
+pub fn density_for_far(far: f64) -> f64 {
+    DEPTH_AT_FAR / far
+}
+
 /// log2(e) · density: the per-metre exponent the shaders take as a uniform.
 pub fn rate(density: f64) -> f32 {
     (density * std::f64::consts::LOG2_E) as f32

@@ -456,8 +456,8 @@ mod tests {
     }
 
     #[test]
-    fn the_default_scene_has_a_key_for_every_level_and_mark() {
-        let scene = Scene::default_scene();
+    fn the_bench_scene_has_a_key_for_every_level_and_mark() {
+        let scene = Scene::bench_scene();
         let session = session(&scene).unwrap();
         let cm = session.lod.clipmap().unwrap();
         let png = draw(cm, &session.world, Some(&scene.camera()), 800).unwrap();
