@@ -79,32 +79,18 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let (r, s) =
         synthesis::run(&map, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", a.map.display()))?;
     if let Some(out) = &a.out {
-        // The real map's 95th-percentile slope shades at 45°, so maps of
-        // any relief and cell size show their forms.
-        let e = 1.0 / synthesis::slope_percentile(&s.real, 0.95).max(1e-9);
-        let panels = [
-            synthesis::hillshade(&s.real, e, 1),
-            synthesis::hillshade(&s.decimated, e / a.factor as f64, a.factor),
-            synthesis::hillshade(&s.synthesised, e, 1),
-        ];
-        let gap = 4;
-        let (pw, ph) = (s.real.width, s.real.height);
-        let width = 3 * pw + 2 * gap;
-        let mut grey = vec![255u8; width * ph];
-        for (k, (w, _, px)) in panels.iter().enumerate() {
-            for y in 0..ph {
-                let n = pw.min(*w);
-                grey[y * width + k * (pw + gap)..][..n].copy_from_slice(&px[y * w..][..n]);
-            }
+        let name = a
+            .map
+            .file_name()
+            .map_or(String::new(), |n| n.to_string_lossy().into());
+        let mut title = match a.window {
+            Some([x, y, w, h]) => format!("{name}, window {w} × {h} at ({x}, {y})"),
+            None => name,
+        };
+        if a.local {
+            title += ", local noise";
         }
-        let mut png = Vec::new();
-        image::ImageEncoder::write_image(
-            image::codecs::png::PngEncoder::new(&mut png),
-            &grey,
-            width as u32,
-            ph as u32,
-            image::ExtendedColorType::L8,
-        )?;
+        let png = synthesis::comparison_png(&s, a.factor, &title)?;
         write_atomic(out, &png)?;
     }
     if a.json {

@@ -287,6 +287,60 @@ pub fn slope_percentile(l: &PyramidLevel, q: f64) -> f64 {
     g[((g.len() - 1) as f64 * q.clamp(0.0, 1.0)) as usize]
 }
 
+/// The three surfaces side by side as hillshades, for `synthesis -o`: a
+/// title over them (`title`, the map's name) and a label over each panel
+/// (real, decimated F×, synthesised), so the picture reads on its own. The
+/// real map's 95th-percentile slope shades at 45°, so maps of any relief
+/// and cell size show their forms.
+pub fn comparison_png(s: &Surfaces, factor: usize, title: &str) -> Result<Vec<u8>> {
+    use crate::studies::report::text::{self, Anchor};
+    let e = 1.0 / slope_percentile(&s.real, 0.95).max(1e-9);
+    let panels = [
+        (hillshade(&s.real, e, 1), "real".to_string()),
+        (
+            hillshade(&s.decimated, e / factor as f64, factor),
+            format!("decimated {factor}×"),
+        ),
+        (
+            hillshade(&s.synthesised, e, 1),
+            format!("synthesised back down ({factor}×)"),
+        ),
+    ];
+    let (gap, head) = (4usize, 56usize);
+    let (pw, ph) = (s.real.width, s.real.height);
+    let width = 3 * pw + 2 * gap;
+    let mut pm = tiny_skia::Pixmap::new(width as u32, (ph + head) as u32)
+        .ok_or_else(|| Error::value("synthesis -o", format!("a {width} × {ph} picture")))?;
+    pm.fill(tiny_skia::Color::WHITE);
+    let data = pm.data_mut();
+    for (k, ((w, _, px), _)) in panels.iter().enumerate() {
+        let n = pw.min(*w);
+        for y in 0..ph {
+            for x in 0..n {
+                let g = px[y * w + x];
+                let o = ((y + head) * width + k * (pw + gap) + x) * 4;
+                data[o..o + 4].copy_from_slice(&[g, g, g, 255]);
+            }
+        }
+    }
+    let ink = [30, 30, 30];
+    text::draw(
+        &mut pm,
+        (width as f32 / 2.0, 20.0),
+        title,
+        13.0,
+        Anchor::Middle,
+        false,
+        ink,
+    );
+    for (k, (_, label)) in panels.iter().enumerate() {
+        let x = (k * (pw + gap) + pw / 2) as f32;
+        text::draw(&mut pm, (x, 46.0), label, 10.0, Anchor::Middle, false, ink);
+    }
+    pm.encode_png()
+        .map_err(|e| Error::value("synthesis -o", e.to_string()))
+}
+
 /// Grey hillshade of `l` (light from the north-west, 45° up; `exaggerate`
 /// scales heights over the sample spacing), `scale` pixels a sample.
 pub fn hillshade(l: &PyramidLevel, exaggerate: f64, scale: usize) -> (usize, usize, Vec<u8>) {
