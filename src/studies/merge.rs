@@ -1,6 +1,6 @@
 //! `merge`: joins the JSON of a sweep's parts (`--shard i/N`) into what one
 //! run prints. It sits above the studies it dispatches to (`cracks`,
-//! `tradeoff`, `fly`) and `export`, which know only [`Shard`]: none of them
+//! `tradeoff`, `fly`) and `export`, which know only [`crate::shard::Shard`]: none of them
 //! imports this module.
 
 use crate::error::{Error, Result};
