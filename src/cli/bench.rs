@@ -1,6 +1,6 @@
 //! `terraclip bench`: CPU and GPU frames per second, side by side.
 
-use super::load_bench_scene;
+use super::load_scene;
 use std::path::PathBuf;
 use terraclip::scene::Overrides;
 
@@ -36,7 +36,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.frames == 0 || a.repeats == 0 {
         anyhow::bail!("--frames and --repeats must be at least 1");
     }
-    let mut s = load_bench_scene(&a.scene)?;
+    let mut s = load_scene(&a.scene, terraclip::scene::Scene::bench_scene)?;
     s.apply(&Overrides {
         size: Some(a.size),
         ..Default::default()

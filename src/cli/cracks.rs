@@ -1,6 +1,6 @@
 //! `terraclip cracks`: a crack survey over random views.
 
-use super::{load_bench_scene, progress};
+use super::{load_scene, progress};
 use std::path::PathBuf;
 use terraclip::render::Image;
 use terraclip::scene::{Overrides, Scene};
@@ -48,7 +48,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.views == 0 {
         anyhow::bail!("--views must be at least 1");
     }
-    let s = load_bench_scene(&a.scene)?;
+    let s = load_scene(&a.scene, Scene::bench_scene)?;
     let schemes = scheme_list(&a.lod, &s);
     let bar = progress(a.views, "cracks");
     let r = cracks::survey(&s, &schemes, a.views, a.size, a.shard, || bar.inc(1))?;

@@ -22,7 +22,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.size == 0 || a.size > 16384 {
         anyhow::bail!("--size must be within 1..=16384, got {}", a.size);
     }
-    let s = load_scene(&a.scene)?;
+    let s = load_scene(&a.scene, terraclip::scene::Scene::default_scene)?;
     let session = diagram::session(&s)?;
     let cm = session
         .lod

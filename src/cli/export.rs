@@ -31,7 +31,9 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let scene = a.args.scene(&a.scene)?;
+    let scene = a
+        .args
+        .scene(&a.scene, terraclip::scene::Scene::default_scene)?;
     let (name, text) = match &a.scene {
         Some(p) => (
             p.file_stem()

@@ -54,7 +54,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if a.gif && !a.shard.is_whole() {
         anyhow::bail!("--gif is of the whole flight: it does not take --shard (each part writes its frames' PNGs)");
     }
-    let s = a.args.bench_scene(&a.scene)?;
+    let s = a
+        .args
+        .scene(&a.scene, terraclip::scene::Scene::bench_scene)?;
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| terraclip::Error::io(dir, e))?;
     }

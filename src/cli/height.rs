@@ -50,7 +50,9 @@ fn parse_ray(s: &str) -> Result<[f64; 6], String> {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let s = a.args.scene(&a.scene)?;
+    let s = a
+        .args
+        .scene(&a.scene, terraclip::scene::Scene::default_scene)?;
     let mut session = Session::new(&s, &mut Default::default())?;
     let surface = session.surface(&s.camera())?;
     let points: Vec<_> =

@@ -86,23 +86,16 @@ impl SceneArgs {
         format!("{scene} {:?}", self.overrides())
     }
 
-    /// The scene at `path` (the embedded one if none) with these overrides.
-    /// A heightmap given without `--camera` or `--look-at` is framed: the
-    /// scene's camera, far plane and fog were placed for its own terrain.
-    pub fn scene(&self, path: &Option<PathBuf>) -> anyhow::Result<Scene> {
-        self.scene_over(load_scene(path)?)
-    }
-
-    /// [`SceneArgs::scene`] for a command that measures: without a path,
-    /// the benchmark's scene ([`load_bench_scene`]).
-    pub fn bench_scene(&self, path: &Option<PathBuf>) -> anyhow::Result<Scene> {
-        self.scene_over(load_bench_scene(path)?)
-    }
-
-    fn scene_over(&self, mut s: Scene) -> anyhow::Result<Scene> {
+    /// The scene at `path` (else `embedded`: [`load_scene`]) with these
+    /// overrides. A heightmap given without `--camera` or `--look-at` is
+    /// framed: the scene's camera, far plane and fog were placed for its
+    /// own terrain.
+    pub fn scene(&self, path: &Option<PathBuf>, embedded: fn() -> Scene) -> anyhow::Result<Scene> {
+        let mut s = load_scene(path, embedded)?;
         s.apply(&self.overrides())?;
         if self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none() {
-            terraclip::scene::frame_terrain(&mut s, false)?;
+            terraclip::scene::frame_terrain(&mut s)?;
+            s.fog_from_far();
         }
         Ok(s)
     }
@@ -118,22 +111,15 @@ pub fn report(json: bool, value: serde_json::Value, text: impl FnOnce() -> Strin
     }
 }
 
-/// The scene at `path`, or the embedded default scene.
-pub fn load_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
+/// The scene at `path`, or without one the embedded scene `embedded`:
+/// `Scene::default_scene` (the picture), or `Scene::bench_scene` for the
+/// commands that measure (`bench`, `scaling`, `cracks`, `tradeoff`, `fly`),
+/// so that their figures compare with the docs' whatever the default
+/// picture shows.
+pub fn load_scene(path: &Option<PathBuf>, embedded: fn() -> Scene) -> terraclip::Result<Scene> {
     match path {
         Some(p) => Scene::load(p),
-        None => Ok(Scene::default_scene()),
-    }
-}
-
-/// The scene at `path`, or the benchmark's (`benches/scenes/bench.toml`):
-/// the commands that measure (`bench`, `scaling`, `cracks`, `tradeoff`,
-/// `fly`) default to it, so that their figures compare with the docs'
-/// whatever the default picture shows.
-pub fn load_bench_scene(path: &Option<PathBuf>) -> terraclip::Result<Scene> {
-    match path {
-        Some(p) => Scene::load(p),
-        None => Ok(Scene::bench_scene()),
+        None => Ok(embedded()),
     }
 }
 

@@ -36,7 +36,7 @@ impl Args {
 
 /// Renders the scene to `out` and prints its statistics.
 pub fn run(a: &Args) -> anyhow::Result<()> {
-    let s = a.args.scene(&a.scene)?;
+    let s = a.args.scene(&a.scene, Scene::default_scene)?;
     let (image, stats) = match a.backend {
         Backend::Cpu => render::render(&s, &RenderOptions::default())?,
         Backend::Gpu => gpu_render(&s)?,

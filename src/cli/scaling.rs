@@ -1,6 +1,6 @@
 //! `terraclip scaling`: what grows with the terrain.
 
-use super::{load_bench_scene, progress};
+use super::{load_scene, progress};
 use std::path::PathBuf;
 
 /// `terraclip scaling`'s settings.
@@ -68,7 +68,7 @@ impl Args {
 
 pub fn run(args: &Args) -> anyhow::Result<()> {
     use terraclip::studies::scaling;
-    let s = load_bench_scene(&args.scene)?;
+    let s = load_scene(&args.scene, terraclip::scene::Scene::bench_scene)?;
     let opts = args.options();
     let bar = progress(0, "scaling");
     let r = scaling::run(&s, &opts, |label| bar.set_message(label.to_string()))?;

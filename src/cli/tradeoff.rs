@@ -39,7 +39,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "--size must be within 1..=2048 per side (64× supersampling multiplies it by 8)"
         );
     }
-    let s = a.args.bench_scene(&a.scene)?;
+    let s = a
+        .args
+        .scene(&a.scene, terraclip::scene::Scene::bench_scene)?;
     let opts = tradeoff::Options {
         size,
         path_frames: a.path_frames,

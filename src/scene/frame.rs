@@ -7,12 +7,12 @@ use crate::terrain::world::WorldMap;
 use glam::DVec3;
 
 /// Points the scene's camera at its terrain: an oblique overview from the
-/// south, placed from the map's extent and relief, with the far plane, the
-/// near plane and the fog scaled to the map, unless `keep_fog` (the scene
-/// gave its own density). For a scene without a `[camera]`, and for a map
-/// given on the command line without one (`render --heightmap`), whose
-/// scene placed its camera, far plane and fog for another terrain.
-pub fn frame_terrain(scene: &mut Scene, keep_fog: bool) -> Result<()> {
+/// south, placed from the map's extent and relief, with the far plane and
+/// the near plane scaled to the map. For a scene without a `[camera]`, and
+/// for a map given on the command line without one (`render --heightmap`),
+/// whose scene placed its camera for another terrain. The fog follows the
+/// new far plane where the caller says so ([`Scene::fog_from_far`]).
+pub fn frame_terrain(scene: &mut Scene) -> Result<()> {
     let named = |e| scene.named(e);
     // A pack's header holds its size and relief: nothing is decoded.
     let (cell, [w, r], [min, max]) =
@@ -86,10 +86,5 @@ pub fn frame_terrain(scene: &mut Scene, keep_fog: bool) -> Result<()> {
     // Depth32Float keeps about 2^-23 of depth, so the near plane scales
     // with the far one: 1e-5 of it keeps the map's nearest edge resolved.
     c.near = (c.far * 1e-5).max(0.01);
-    // The far plane lies at twice the map's far edge, so the default fog
-    // leaves exp(-0.2), 82 %, of the colour there.
-    if !keep_fog {
-        scene.shading.fog_density = crate::shade::fog::density_for_far(c.far);
-    }
     scene.validate()
 }

@@ -253,27 +253,40 @@ impl Scene {
     /// Parses scene text; `origin` names the source in errors.
     /// A scene without a `[camera]` gets its map framed, which reads the
     /// map's size and relief (a pack's header, or the whole file). Without
-    /// a `fog_density`, the fog follows the far plane: 0.4 / far, which
-    /// leaves 67 % of a colour at the far plane.
+    /// a `fog_density`, the fog follows the far plane
+    /// ([`Scene::fog_from_far`]).
     pub fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
         let invalid = |e: toml::de::Error| {
             Error::file(origin, format!("invalid scene: {}", e.to_string().trim()))
         };
+        // Parsed twice: as a table, to see which keys the text gives (serde's
+        // defaults cannot tell), and as the schema, whose errors carry the
+        // line and column, which a table's values have lost.
         let table: toml::Table = toml::from_str(text).map_err(invalid)?;
         let mut s: Scene = toml::from_str(text).map_err(invalid)?;
         s.base_dir = base_dir.to_path_buf();
         s.origin = origin.to_string();
         s.validate()?;
+        if !table.contains_key("camera") {
+            frame_terrain(&mut s)?;
+        }
         let fog_given = table
             .get("shading")
             .and_then(|t| t.get("fog_density"))
             .is_some();
-        if !table.contains_key("camera") {
-            frame_terrain(&mut s, fog_given)?;
-        } else if !fog_given {
-            s.shading.fog_density = crate::shade::fog::density_for_far(s.camera.far);
+        if !fog_given {
+            s.fog_from_far();
         }
         Ok(s)
+    }
+
+    /// Sets the fog density the far plane implies, 0.4 / far: 67 % of a
+    /// colour is left at the far plane, and 82 % at a framed map's far
+    /// edge (the framing puts the far plane at twice that distance). What
+    /// a scene without a `fog_density` gets, and a map framed on the command
+    /// line, whose scene's fog was set for another terrain.
+    pub fn fog_from_far(&mut self) {
+        self.shading.fog_density = crate::shade::fog::density_for_far(self.camera.far);
     }
 
     /// Reads a scene file.
