@@ -667,30 +667,20 @@ fn no_page_or_comment_names_a_session_or_an_issue() {
     );
     assert!(history_refs("a session of 3 frames; 2 issues", &words).is_empty());
     assert!(history_refs("wgpu issues #1574 and #1614", &words).is_empty());
+    let roots = ["docs", "src", "tests", "benches", "examples", ".ci"].map(|d| root.join(d));
+    let text_file = |p: &PathBuf| {
+        p.extension().is_none_or(|x| {
+            ["md", "rs", "py", "sh", "toml", "wgsl"].contains(&x.to_str().unwrap_or(""))
+        })
+    };
     let mut files = vec![root.join("README.md")];
-    let mut dirs = vec![
-        root.join("docs"),
-        root.join("src"),
-        root.join("tests"),
-        root.join("benches"),
-        root.join("examples"),
-        root.join(".ci"),
-    ];
-    while let Some(d) = dirs.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                if !p.ends_with("data") && !p.ends_with("__pycache__") {
-                    dirs.push(p);
-                }
-            } else if p.extension().is_some_and(|x| {
-                ["md", "rs", "py", "sh", "toml", "wgsl"].contains(&x.to_str().unwrap_or(""))
-            }) || p.extension().is_none()
-            {
-                files.push(p);
-            }
-        }
-    }
+    files.extend(
+        common::files_under(&roots, |d| {
+            !d.ends_with("data") && !d.ends_with("__pycache__")
+        })
+        .into_iter()
+        .filter(text_file),
+    );
     let mut named = Vec::new();
     for f in &files {
         let Ok(text) = std::fs::read_to_string(f) else {

@@ -8,6 +8,8 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
+mod common;
+
 /// The layers, lowest first. A module in none of them fails the test: a
 /// new module takes its place here and in docs/architecture.md.
 const LAYERS: &[&[&str]] = &[
@@ -57,30 +59,16 @@ fn named_modules(text: &str) -> Vec<(usize, String)> {
 /// The top-level module of each `.rs` file under `src/` (the binary's
 /// `main.rs` and `cli/` stand above the library and are left out).
 fn sources(src: &Path) -> Vec<(String, std::path::PathBuf)> {
-    let mut files = Vec::new();
-    let mut dirs = vec![src.to_path_buf()];
-    while let Some(d) = dirs.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                dirs.push(p);
-            } else if p.extension().is_some_and(|x| x == "rs") {
-                let rel = p.strip_prefix(src).unwrap();
-                let top = rel
-                    .components()
-                    .next()
-                    .unwrap()
-                    .as_os_str()
-                    .to_string_lossy();
-                let top = top.trim_end_matches(".rs").to_string();
-                if !["lib", "main", "cli"].contains(&top.as_str()) {
-                    files.push((top, p));
-                }
-            }
-        }
-    }
-    files.sort();
-    files
+    common::files_under(&[src.to_path_buf()], |_| true)
+        .into_iter()
+        .filter(|p| p.extension().is_some_and(|x| x == "rs"))
+        .filter_map(|p| {
+            let rel = p.strip_prefix(src).unwrap();
+            let top = rel.components().next()?.as_os_str().to_string_lossy();
+            let top = top.trim_end_matches(".rs").to_string();
+            (!["lib", "main", "cli"].contains(&top.as_str())).then_some((top, p))
+        })
+        .collect()
 }
 
 /// A path `from` ->* `to` in `graph`, if any.

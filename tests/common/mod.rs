@@ -191,3 +191,25 @@ pub fn fresh_tmp(group: &str, name: &str) -> std::path::PathBuf {
 pub fn skippable_gpu_failure(stderr: &str) -> bool {
     std::env::var("TERRACLIP_REQUIRE_GPU").as_deref() != Ok("1") && stderr.contains("adapter found")
 }
+
+/// Every file under `roots`, sorted, walking into each folder `enter`
+/// allows (the tests that read the repository's own text: layers, docs).
+pub fn files_under(
+    roots: &[std::path::PathBuf],
+    enter: impl Fn(&std::path::Path) -> bool,
+) -> Vec<std::path::PathBuf> {
+    let mut files = Vec::new();
+    let mut dirs = roots.to_vec();
+    while let Some(d) = dirs.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if !p.is_dir() {
+                files.push(p);
+            } else if enter(&p) {
+                dirs.push(p);
+            }
+        }
+    }
+    files.sort();
+    files
+}
