@@ -153,6 +153,17 @@ fn a_jpeg_copy_passes_flip_and_fails_exact() {
         );
         assert!(o[2].pass, "{name}: {:?}", o[2]);
         assert!(!o[2].depth_compared);
+        // With the reference's depth beside it, flip mode still judges the
+        // geometry by depth alone: the JPEG's colour is no hole and no
+        // depth outside the band, so it passes.
+        let with_depth = Image {
+            depth: e.image.depth.clone(),
+            ..img
+        };
+        let o =
+            outside::compare(&e, &with_depth, &outside::Options::new(Mode::Flip), None).unwrap();
+        assert!(o.pass && o.depth_compared, "{name}: {o:?}");
+        assert!(o.tiers.outside_band > 0, "{name}: {o:?}");
     }
 }
 
@@ -855,4 +866,209 @@ fn big_endian_is_named_when_the_wrong_reading_is_finite() {
     )
     .unwrap();
     assert_eq!(load_depth(&path, 3, 2, None).unwrap(), vec![z; 6]);
+}
+
+/// What a failing comparison reports, pixel by pixel, in each mode: the
+/// failing pixels in scan order with their place, tier, band and distance
+/// to the nearest edge of the set-up triangles whose box, grown by a
+/// pixel, holds the pixel;
+/// the worst pixel (the first with the largest step); the reason; and the
+/// error picture's panels.
+#[test]
+fn a_failing_comparison_lists_its_pixels_and_draws_them() {
+    let e = exported("jacksboro-oblique");
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let raster = terraclip::render::raster(&e.frame, terraclip::raster::Path::from_env());
+    let band = compare::tie_band_for(
+        &raster,
+        e.frame.effects.wireframe,
+        compare::MIN_SUBPIXEL_BITS,
+    );
+    // Terrain pixels with no band and no background within 3 px, at
+    // least 8 px apart; and one band pixel as far from them.
+    let clear = |i: usize| {
+        let (x, y) = (i % w, i / w);
+        x >= 3
+            && y >= 3
+            && x + 3 < w
+            && y + 3 < h
+            && (y - 3..=y + 3).all(|v| {
+                (x - 3..=x + 3).all(|u| !band[v * w + u] && e.image.depth[v * w + u] < 1.0)
+            })
+    };
+    let apart = |picked: &[usize], i: usize| {
+        picked
+            .iter()
+            .all(|&p| (p % w).abs_diff(i % w).max((p / w).abs_diff(i / w)) >= 8)
+    };
+    let mut picked: Vec<usize> = vec![];
+    for i in (0..w * h).step_by(29) {
+        if picked.len() < 4 && clear(i) && apart(&picked, i) {
+            picked.push(i);
+        }
+    }
+    let in_band = (0..w * h)
+        .step_by(13)
+        .find(|&i| band[i] && e.image.depth[i] < 1.0 && apart(&picked, i))
+        .unwrap();
+    assert_eq!(picked.len(), 4, "{picked:?}");
+    let [early, far, far2, deep] = [picked[0], picked[1], picked[2], picked[3]];
+    let mut theirs = e.image.clone();
+    let nudge = |img: &mut Image, i: usize, by: u8| {
+        for k in 0..3 {
+            let c = &mut img.rgba[4 * i + k];
+            *c = if *c < 128 { *c + by } else { *c - by };
+        }
+    };
+    nudge(&mut theirs, early, 2);
+    nudge(&mut theirs, in_band, 3);
+    nudge(&mut theirs, far, 120);
+    nudge(&mut theirs, far2, 120);
+    theirs.depth[far] *= 0.5;
+    theirs.depth[deep] = f32::from_bits(theirs.depth[deep].to_bits() + 1);
+    let nearest = |x: usize, y: usize| {
+        raster
+            .tris
+            .iter()
+            .filter(|t| {
+                let [x0, y0, x1, y1] = t.bbox.map(|v| v as f64);
+                let (x, y) = (x as f64, y as f64);
+                (x0 - 1.0..=x1 + 1.0).contains(&x) && (y0 - 1.0..=y1 + 1.0).contains(&y)
+            })
+            .flat_map(|t| compare::edge_ends(&t.edges))
+            .map(|[p, q]| compare::segment_distance([x as f64, y as f64], p, q))
+            .filter(|d| d.is_finite())
+            .min_by(f64::total_cmp)
+    };
+    let dir = tmp("failing-pixels");
+    let run = |mode: Mode| {
+        let o = outside::compare(&e, &theirs, &outside::Options::new(mode), Some(&dir)).unwrap();
+        assert!(!o.pass, "{mode}");
+        for f in &o.failing {
+            let i = f.y * w + f.x;
+            assert_eq!(f.in_band, band[i], "{mode} {f:?}");
+            assert_eq!(
+                f.reference_rgba[..],
+                e.image.rgba[4 * i..4 * i + 4],
+                "{f:?}"
+            );
+            assert_eq!(f.theirs_rgba[..], theirs.rgba[4 * i..4 * i + 4], "{f:?}");
+            assert_eq!(f.nearest_edge_px, nearest(f.x, f.y), "{mode} {f:?}");
+        }
+        let worst = o.worst.unwrap();
+        assert_eq!((worst.x, worst.y), (far % w, far / w), "{mode}");
+        let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+        assert_eq!(diff.dimensions(), (4 * w as u32, h as u32));
+        let panel = |k: usize, i: usize| diff.get_pixel((k * w + i % w) as u32, (i / w) as u32).0;
+        for i in 0..w * h {
+            assert_eq!(
+                panel(0, i)[..],
+                e.image.rgba[4 * i..4 * i + 4],
+                "{mode} {i}"
+            );
+            assert_eq!(panel(2, i)[..], theirs.rgba[4 * i..4 * i + 4], "{mode} {i}");
+        }
+        (
+            o,
+            panel(1, far),
+            panel(1, early),
+            panel(3, deep),
+            panel(3, far),
+        )
+    };
+    let listed = |o: &outside::Outcome| -> Vec<(usize, &str)> {
+        o.failing.iter().map(|f| (f.y * w + f.x, f.tier)).collect()
+    };
+    let mut all = [early, in_band, far, far2, deep];
+    all.sort();
+
+    let (o, mask_far, mask_early, dz_deep, dz_far) = run(Mode::Exact);
+    assert_eq!(
+        listed(&o),
+        all.iter().map(|&i| (i, "differs")).collect::<Vec<_>>()
+    );
+    let reason = o.reason.unwrap();
+    assert!(
+        reason.starts_with("4 px differ in colour (by up to 120 steps) and 2 in depth"),
+        "{reason}"
+    );
+    assert_eq!(mask_far, [255, 0, 0, 255]);
+    assert_eq!(mask_early, [255, 0, 0, 255]);
+    assert_eq!(dz_deep, [60, 120, 255, 255]);
+    assert_eq!(dz_far, [255, 0, 0, 255]);
+    let quiet = (0..w * h).find(|&i| !all.contains(&i)).unwrap();
+    let dim = e.image.rgba[4 * quiet..4 * quiet + 3].iter().map(|c| c / 3);
+    let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+    let got = diff.get_pixel((w + quiet % w) as u32, (quiet / w) as u32).0;
+    assert_eq!(got[..3], dim.collect::<Vec<u8>>()[..]);
+
+    let (o, mask_far, mask_early, _, _) = run(Mode::Tiered);
+    let tiered: Vec<usize> = listed(&o).iter().map(|&(i, _)| i).collect();
+    let mut want = vec![early, far, far2];
+    want.sort();
+    assert_eq!(tiered, want, "{:?}", o.failing);
+    assert!(o
+        .failing
+        .iter()
+        .all(|f| f.tier != "same" && f.tier != "hole"));
+    assert_eq!(mask_far, [0, 255, 255, 255]);
+    assert_eq!(mask_early, [0, 255, 255, 255]);
+
+    let (o, _, _, _, _) = run(Mode::Flip);
+    let flipped: Vec<usize> = listed(&o).iter().map(|&(i, _)| i).collect();
+    assert!(
+        flipped.contains(&far) && flipped.contains(&far2),
+        "{flipped:?}"
+    );
+    for &i in &flipped {
+        assert!(!band[i]);
+        let near = [early, far, far2]
+            .iter()
+            .any(|&p| (p % w).abs_diff(i % w).max((p / w).abs_diff(i / w)) <= 3);
+        assert!(near, "{i} is listed in flip mode: {flipped:?}");
+    }
+    let reason = o.reason.unwrap();
+    assert!(
+        reason.contains("1 px of depth differ outside the tie band") && !reason.contains("holes"),
+        "{reason}"
+    );
+}
+
+/// A comparison of images that are not whole or not the same size is an
+/// error, before any pixel is read.
+#[test]
+fn images_of_another_size_or_not_whole_are_refused() {
+    let e = exported("level-tint");
+    let (w, h) = (e.image.width, e.image.height);
+    let opts = outside::Options::new(Mode::Tiered);
+    let turned = Image {
+        width: h,
+        height: w,
+        ..e.image.clone()
+    };
+    let err = outside::compare(&e, &turned, &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&format!("a {h}x{w} image where the reference is {w}x{h}")),
+        "{err}"
+    );
+    let mut short = e.image.clone();
+    short.rgba.pop();
+    let err = outside::compare(&e, &short, &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("colour bytes"), "{err}");
+    let mut short = e.image.clone();
+    short.depth.pop();
+    let err = outside::compare(&e, &short, &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("depths"), "{err}");
+    let mut no_depth = export::read(&e.dir).unwrap();
+    no_depth.image.depth.clear();
+    let err = outside::compare(&no_depth, &e.image, &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("not a whole image"), "{err}");
 }

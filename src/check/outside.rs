@@ -558,7 +558,11 @@ fn flip_stats(values: &[f32], ppd: f32) -> FlipStats {
 }
 
 /// The distance in pixels from pixel (x, y)'s centre to the nearest edge
-/// of a set-up triangle whose box reaches it; none when no box does.
+/// of a set-up triangle whose box, grown by a pixel, holds it; none when
+/// no box does. Only those: a pixel's own triangle is among them, and no
+/// triangle further out has an edge nearer than its own. (Two triangles
+/// sharing an edge hold it a fixed-point unit apart after the top-left
+/// rule, so a neighbour's copy can be nearer by about 10⁻⁶ px.)
 fn nearest_edge(r: &crate::raster::Raster, x: usize, y: usize) -> Option<f64> {
     let (x, y) = (x as i32, y as i32);
     r.tris
@@ -646,15 +650,37 @@ pub fn compare(
 ) -> Result<Outcome> {
     let (w, h) = (e.image.width, e.image.height);
     let n = w as usize * h as usize;
-    if (theirs.width, theirs.height) != (w, h)
-        || theirs.rgba.len() != 4 * n
-        || !(theirs.depth.is_empty() || theirs.depth.len() == n)
-    {
+    // Both images whole and the same size, so that no comparison below
+    // meets a missing pixel (`Difference`'s size mismatch cannot happen).
+    let whole = |img: &Image| img.rgba.len() == 4 * n && img.depth.len() == n;
+    if n == 0 || !whole(&e.image) {
+        return Err(Error::file(
+            &e.dir,
+            format!(
+                "a {w}x{h} reference with {} colour bytes and {} depths: not a whole image",
+                e.image.rgba.len(),
+                e.image.depth.len()
+            ),
+        ));
+    }
+    if (theirs.width, theirs.height) != (w, h) {
         return Err(Error::value(
             "compare",
             format!(
                 "a {}x{} image where the reference is {w}x{h}",
                 theirs.width, theirs.height
+            ),
+        ));
+    }
+    if theirs.rgba.len() != 4 * n || !(theirs.depth.is_empty() || theirs.depth.len() == n) {
+        return Err(Error::value(
+            "compare",
+            format!(
+                "a {w}x{h} image with {} colour bytes and {} depths; {w}x{h} takes {} bytes \
+                 and {n} depths (or none)",
+                theirs.rgba.len(),
+                theirs.depth.len(),
+                4 * n
             ),
         ));
     }
@@ -823,7 +849,6 @@ pub fn compare(
             "{} px differ in colour (by up to {} steps) and {} in depth (by up to {} ULP)",
             d.colour_px_differ, d.max_channel_diff, d.depth_px_differ, d.max_depth_ulp
         ),
-        Mode::Tiered if d.size_mismatch => "the images are not comparable".to_string(),
         Mode::Tiered => format!(
             "{} px differ outside the tie band ({:.3} px of an edge, {} sub-pixel bits), where \
              no conforming rasteriser may differ; {} holes",
@@ -1000,3 +1025,7 @@ pub fn run(
     };
     compare(&e, &theirs, opts, out)
 }
+
+#[cfg(test)]
+#[path = "outside_tests.rs"]
+mod tests;
