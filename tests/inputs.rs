@@ -516,6 +516,38 @@ fn a_heightmap_without_a_camera_is_framed() {
     );
 }
 
+/// A scene without a camera whose map `--heightmap` replaces is not
+/// framed on its own map first: framing reads the whole map, so a scene
+/// naming a large raw file paid for reading it once more. Here the
+/// scene's own map does not exist, so reading it would be an error.
+#[test]
+fn a_replaced_map_is_not_read() {
+    let dir = tmp("replaced-map");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("terrain-only.toml");
+    std::fs::write(&scene, "[terrain]\nfile = \"missing.png\"\n").unwrap();
+    let out = dir.join("out.png");
+    let (code, _, err) = cli(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--heightmap",
+        "tests/data/jacksboro_16.png",
+        "--size",
+        "160x90",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // Without --heightmap the scene's own map is read, and named.
+    let (code, _, err) = cli(&[
+        "render",
+        scene.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(code != 0 && err.contains("missing.png"), "{err}");
+}
+
 /// A GeoTIFF in geographic coordinates (SRTM, Copernicus DEM and GLOBE
 /// tiles are in degrees): its 30″ cells become metres at the map's centre
 /// latitude, and `info` names the CRS. Before, the cell size came out as

@@ -91,9 +91,14 @@ impl SceneArgs {
     /// framed: the scene's camera, far plane and fog were placed for its
     /// own terrain.
     pub fn scene(&self, path: &Option<PathBuf>, embedded: fn() -> Scene) -> anyhow::Result<Scene> {
-        let mut s = load_scene(path, embedded)?;
+        let reframe = self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none();
+        // The scene's own map is not read when another replaces it.
+        let mut s = match path {
+            Some(p) if reframe => Scene::load_unframed(p)?,
+            _ => load_scene(path, embedded)?,
+        };
         s.apply(&self.overrides())?;
-        if self.heightmap.is_some() && self.camera.is_none() && self.look_at.is_none() {
+        if reframe {
             terraclip::scene::frame_terrain(&mut s)?;
             s.fog_from_far();
         }

@@ -256,6 +256,18 @@ impl Scene {
     /// a `fog_density`, the fog follows the far plane
     /// ([`Scene::fog_from_far`]).
     pub fn parse(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
+        Self::parse_framing(text, origin, base_dir, true)
+    }
+
+    /// [`Scene::parse`], but a scene without a `[camera]` is left unframed
+    /// (its camera the default) for a caller that replaces the terrain and
+    /// frames the new one: framing reads the whole map, which for a large
+    /// raw file is most of the time a render takes.
+    pub fn parse_unframed(text: &str, origin: &str, base_dir: &Path) -> Result<Self> {
+        Self::parse_framing(text, origin, base_dir, false)
+    }
+
+    fn parse_framing(text: &str, origin: &str, base_dir: &Path, frame: bool) -> Result<Self> {
         let invalid = |e: toml::de::Error| {
             Error::file(origin, format!("invalid scene: {}", e.to_string().trim()))
         };
@@ -267,7 +279,7 @@ impl Scene {
         s.base_dir = base_dir.to_path_buf();
         s.origin = origin.to_string();
         s.validate()?;
-        if !table.contains_key("camera") {
+        if frame && !table.contains_key("camera") {
             frame_terrain(&mut s)?;
         }
         let fog_given = table
@@ -291,9 +303,18 @@ impl Scene {
 
     /// Reads a scene file.
     pub fn load(path: &Path) -> Result<Self> {
+        Self::load_framing(path, true)
+    }
+
+    /// [`Scene::load`] with [`Scene::parse_unframed`].
+    pub fn load_unframed(path: &Path) -> Result<Self> {
+        Self::load_framing(path, false)
+    }
+
+    fn load_framing(path: &Path, frame: bool) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-        Self::parse(&text, &path.display().to_string(), &dir)
+        Self::parse_framing(&text, &path.display().to_string(), &dir, frame)
     }
 
     /// The embedded default scene.
