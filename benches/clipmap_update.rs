@@ -37,7 +37,7 @@ fn bench(c: &mut Criterion) {
     }
 }
 
-/// The incremental-update case of docs/performance.md: n = 255, L = 10, one texel per frame, against a
+/// The incremental-update case of docs/explanation/performance.md: n = 255, L = 10, one texel per frame, against a
 /// full rebuild of every level (the `scaling` command's map).
 fn bench_n255_l10(c: &mut Criterion) {
     let pyramid = Arc::new(terraclip::studies::scaling::update_map(255, 10).unwrap());

@@ -1,5 +1,5 @@
 //! The floor under the incremental-update target (a walk costs at most
-//! 1.2× its share of a rebuild; docs/performance.md), in a bare model:
+//! 1.2× its share of a rebuild; docs/explanation/performance.md), in a bare model:
 //! 10 toroids of 256², level l stepping 2 texels every 2^(l+1) frames of a
 //! one-texel walk, doing nothing but copy the exposed texels from a 16384²
 //! source, against a rebuild that copies every texel in the same layout.

@@ -12,7 +12,7 @@
 //!
 //! ## Implementation
 //! Data flows one way: scene → heightmap → pyramid → LOD scheme → frame →
-//! raster → shade. `docs/architecture.md` describes the stages.
+//! raster → shade. `docs/explanation/architecture.md` describes the stages.
 
 #![warn(missing_docs)]
 

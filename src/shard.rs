@@ -2,7 +2,7 @@
 //! deterministic parts of a sweep, and `studies::merge` joins the parts'
 //! JSON into exactly what one run prints, timings aside. No scheduler: GNU parallel,
 //! a Slurm job array or a shell loop starts the parts
-//! (docs/verify-your-renderer.md shows each).
+//! (docs/tutorials/verify-your-renderer.md shows each).
 //!
 //! A part owns the items `k` with `k mod N = i` (views, scenes, settings),
 //! so the parts take turns through the sweep and each gets a fair share of

@@ -131,7 +131,7 @@ fn removed_triangles_are_holes() {
 
 /// Over levels synthesised finer than the map (the clipmap's made a tile
 /// at a time, the brute-force reference's whole), no scheme that
-/// `docs/synthesis.md` names as crack-free cracks (clipmap strips and
+/// `docs/explanation/synthesis.md` names as crack-free cracks (clipmap strips and
 /// footprints, GeoMipMapping, ROAM, CDLOD), the annulus does (it cracks
 /// everywhere, by design), and with morph off the clipmap's synthesised
 /// rings do: the detector still sees them.

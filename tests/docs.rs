@@ -1,5 +1,5 @@
 //! What the documentation promises. The CLI contract: every command's
-//! `--json` keys are exactly the keys `docs/cli.md` lists for it. Scripts
+//! `--json` keys are exactly the keys `docs/reference/cli.md` lists for it. Scripts
 //! depend on those keys, so a key added, renamed or dropped without the
 //! page fails here, and so does a key the page promises that no run
 //! prints. Every relative link in the README and `docs/` resolves, and no
@@ -13,11 +13,14 @@ use serde_json::Value;
 
 mod common;
 
-/// The keys `docs/cli.md` lists per command: `## \`name\`` headings, then
+/// The keys `docs/reference/cli.md` lists per command: `## \`name\`` headings, then
 /// the first column of each table whose header is `JSON key`.
 fn documented() -> BTreeMap<String, BTreeSet<String>> {
-    let page = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/cli.md"))
-        .expect("docs/cli.md");
+    let page = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/docs/reference/cli.md"
+    ))
+    .expect("docs/reference/cli.md");
     let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     let mut command: Option<String> = None;
     let mut in_keys = false;
@@ -53,10 +56,12 @@ fn documented() -> BTreeMap<String, BTreeSet<String>> {
         let key = cell
             .strip_prefix('`')
             .and_then(|k| k.strip_suffix('`'))
-            .unwrap_or_else(|| panic!("docs/cli.md, {c}: key cell {cell:?} is not `code`"));
+            .unwrap_or_else(|| {
+                panic!("docs/reference/cli.md, {c}: key cell {cell:?} is not `code`")
+            });
         assert!(
             out.entry(c.clone()).or_default().insert(key.to_string()),
-            "docs/cli.md, {c}: {key} listed twice"
+            "docs/reference/cli.md, {c}: {key} listed twice"
         );
     }
     out
@@ -466,7 +471,7 @@ fn every_json_key_is_in_docs_cli_md() {
     let pages: BTreeSet<&str> = docs.keys().map(String::as_str).collect();
     assert_eq!(
         listed, pages,
-        "commands run here against commands in docs/cli.md"
+        "commands run here against commands in docs/reference/cli.md"
     );
 
     let mut problems = Vec::new();
@@ -503,13 +508,13 @@ fn every_json_key_is_in_docs_cli_md() {
         let doc = &docs[*command];
         for k in keys.all.difference(doc) {
             problems.push(format!(
-                "{command}: prints `{k}`, which docs/cli.md does not list"
+                "{command}: prints `{k}`, which docs/reference/cli.md does not list"
             ));
         }
         for k in doc.difference(&keys.all) {
             if !keys.hidden(k) {
                 problems.push(format!(
-                    "{command}: docs/cli.md lists `{k}`, which no run printed"
+                    "{command}: docs/reference/cli.md lists `{k}`, which no run printed"
                 ));
             }
         }
@@ -586,12 +591,13 @@ fn links(page: &str) -> Vec<String> {
 fn every_link_in_the_docs_resolves() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut pages = vec![root.join("README.md")];
-    for e in std::fs::read_dir(root.join("docs")).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().is_some_and(|x| x == "md") {
-            pages.push(p);
-        }
-    }
+    // docs/ and its folders (tutorials, how-to, reference, explanation).
+    pages.extend(
+        common::files_under(&[root.join("docs")], |_| true)
+            .into_iter()
+            .filter(|p| p.extension().is_some_and(|x| x == "md")),
+    );
+    assert!(pages.len() > 20, "{} pages", pages.len());
     let mut checked = 0;
     let mut broken = Vec::new();
     for page in &pages {

@@ -1,5 +1,5 @@
 //! Imports run one way. The library's top-level modules stand in layers,
-//! lowest first (the table below, drawn in docs/architecture.md); a module
+//! lowest first (the table below, drawn in docs/explanation/architecture.md); a module
 //! may name (`crate::x`) only modules of lower layers. So there is no
 //! import cycle between modules, and no stage reads the scene, a study or a
 //! check. A failure names the file and line of each import that runs the
@@ -11,7 +11,7 @@ use std::path::Path;
 mod common;
 
 /// The layers, lowest first. A module in none of them fails the test: a
-/// new module takes its place here and in docs/architecture.md.
+/// new module takes its place here and in docs/explanation/architecture.md.
 const LAYERS: &[&[&str]] = &[
     &["error", "cpu", "camera", "names", "shard"],
     &["raster"],

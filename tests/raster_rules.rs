@@ -1,4 +1,4 @@
-//! The rasterisation rules (docs/raster-rules.md), pinned by hand-computed cases
+//! The rasterisation rules (docs/reference/raster-rules.md), pinned by hand-computed cases
 //! and property tests: exact tiling, shared edges, snap ties, and identical
 //! bits for any thread count and for the scalar and 8-lane paths.
 

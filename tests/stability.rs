@@ -924,7 +924,7 @@ fn bilinear(m: &terraclip::pyramid::PyramidLevel, x: f64, y: f64) -> f64 {
 
 /// Every view of the proptest's domain, 4 schemes × 200, each checked as
 /// the proptest checks its draws, and the totals asserted exactly (the
-/// renders are deterministic): the figures `docs/testing.md` gives.
+/// renders are deterministic): the figures `docs/explanation/testing.md` gives.
 #[test]
 fn all_800_height_query_views() {
     let mut total = Queries::default();

@@ -2,9 +2,9 @@
 """An outside renderer for terraclip exports: OpenGL 4.5 through moderngl,
 on whatever EGL offers (Mesa's llvmpipe on a machine without a GPU).
 
-It is written from the docs alone: docs/verify-your-renderer.md, the
-export's files and "The shading, exactly" (docs/export-format.md), and
-"Settings per graphics API" (docs/graphics-apis.md). It reads nothing
+It is written from the docs alone: docs/tutorials/verify-your-renderer.md, the
+export's files and "The shading, exactly" (docs/reference/export-format.md), and
+"Settings per graphics API" (docs/how-to/graphics-apis.md). It reads nothing
 of terraclip's code and links nothing of it. Usage:
 
     render.py EXPORT_DIR OUT_PREFIX

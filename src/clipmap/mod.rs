@@ -382,7 +382,7 @@ impl Clipmap {
     /// Starts loading the source rows the next update will copy if the
     /// viewer repeats its last vertical step, so that copy finds them in
     /// cache. (Column blocks are not prefetched: it made east walks
-    /// slower; `docs/performance.md` has the figures.) Only for small steps and a complete pyramid (a lazy one may
+    /// slower; `docs/explanation/performance.md` has the figures.) Only for small steps and a complete pyramid (a lazy one may
     /// not have built them). A hint: no value changes.
     fn prefetch_ahead(&self, previous: [f64; 2], viewer: [f64; 2]) {
         let d = [viewer[0] - previous[0], viewer[1] - previous[1]];

@@ -1,6 +1,6 @@
 //! The shading as GLSL 4.50 source an outside OpenGL renderer can compile
 //! as it is (`terrain.vert`, `terrain.frag` in an export): the arithmetic
-//! of docs/verify-your-renderer.md, "The shading, exactly", written out
+//! of docs/tutorials/verify-your-renderer.md, "The shading, exactly", written out
 //! for the frame's effects and varyings, each step `precise` so that no
 //! compiler fuses or reorders it. `examples/outside-gl` draws every golden
 //! with these files and matches the reference bit for bit on llvmpipe
@@ -98,7 +98,7 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> (String, String)
     }
     let frag = format!(
         "#version 450\n\
-         // terraclip export: the shading of docs/verify-your-renderer.md.\n\
+         // terraclip export: the shading of docs/tutorials/verify-your-renderer.md.\n\
          // Uniforms from frame.json: sun = sun_direction; ambient,\n\
          // specular_strength, specular_squarings, wire_colour from shading;\n\
          // fog_colour = shading.fog_colour, or background when null;\n\

@@ -48,7 +48,7 @@ pub const FORMAT: &str = "terraclip-export";
 /// `manifest.json`'s `version`: bumped whenever a file's meaning changes.
 pub const VERSION: u32 = 1;
 /// Where the rules a conforming rasteriser follows are stated.
-pub const RULES: &str = "docs/raster-rules.md";
+pub const RULES: &str = "docs/reference/raster-rules.md";
 
 /// `camera.json`.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]

@@ -3,7 +3,7 @@
 //! World positions are f64; the stage subtracts a floating origin (a base-grid
 //! vertex next to the eye) in integers before anything becomes f32, so a
 //! view renders the same far from the world origin as near it. Each step is
-//! written in the order a WGSL vertex shader will repeat (docs/raster-rules.md
+//! written in the order a WGSL vertex shader will repeat (docs/reference/raster-rules.md
 //! rule 7): no FMA, matrix columns summed from the last one.
 
 use crate::camera::Camera;

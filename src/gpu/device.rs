@@ -90,7 +90,7 @@ impl Gpu {
         format!("{} ({:?})", self.info.name, self.info.backend)
     }
 
-    /// True on the stack docs/raster-rules.md pins: lavapipe from Mesa 22.3.6 on
+    /// True on the stack docs/reference/raster-rules.md pins: lavapipe from Mesa 22.3.6 on
     /// x86-64 with FMA, through Vulkan. Parity must then be exact.
     pub fn exact_expected(&self) -> bool {
         let fma = crate::cpu::has_fma();
@@ -105,7 +105,7 @@ impl Gpu {
 /// context, as Vulkan's is: wgpu leaves GL's default (the last), and
 /// llvmpipe builds some triangles' depth planes from the provoking vertex.
 /// On llvmpipe this took the goldens' differing pixels (wireframe aside)
-/// from 44 to 29 and the exact goldens from 5 to 8 (docs/parity.md).
+/// from 44 to 29 and the exact goldens from 5 to 8 (docs/explanation/parity.md).
 /// glow has no `glProvokingVertex`, so the entry point comes from EGL;
 /// wgpu changes no provoking-vertex state afterwards.
 fn first_vertex_provokes(device: &wgpu::Device) {

@@ -1,6 +1,6 @@
 //! The wgpu back end: the same [`Frame`] the CPU rasteriser draws, drawn by a
 //! GPU, so terraclip can check GPU terrain renderers (and be checked by
-//! lavapipe, which follows docs/raster-rules.md exactly).
+//! lavapipe, which follows docs/reference/raster-rules.md exactly).
 //!
 //! It does what GPU clipmaps do (GPU Gems 2 ch. 2): heights live in one
 //! toroidal texture layer per level, rewritten only in the update's dirty

@@ -19,7 +19,7 @@ use crate::terrain::world::WorldMap;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
-/// The scene's `[lod]`: the scheme and its settings (docs/lod-schemes.md lists which
+/// The scene's `[lod]`: the scheme and its settings (docs/reference/lod-schemes.md lists which
 /// scheme reads which key). Without the table, the clipmap with its defaults.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]

@@ -301,7 +301,7 @@ const HEADER: usize = 1 + 4 + 4 + 4 + 4;
 /// phase to stream k mod 2), so a decoder's two dependency chains through
 /// the coder's state overlap: constriction's lookup decoder gave 135 M
 /// symbols/s from one stream and 225–245 M from two taken in turn on the
-/// 2-core machine, for 8 more bytes a tile (docs/pack.md).
+/// 2-core machine, for 8 more bytes a tile (docs/how-to/pack.md).
 const STREAMS: usize = 2;
 
 fn zigzag(q: i64) -> u64 {

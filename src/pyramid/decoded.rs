@@ -86,7 +86,7 @@ pub(super) struct Decoded {
 /// diagonally, 255-texel windows of 128² tiles need about 3 new tiles a
 /// frame over all levels, so 4 mostly keeps ahead while no frame decodes
 /// more than 4 tiles for it (two per level, or a ring two tiles deep,
-/// measured no better; docs/pack.md).
+/// measured no better; docs/how-to/pack.md).
 const AHEAD: usize = 4;
 /// How many tiles deep the ring decoded ahead of each window is, which
 /// eviction keeps.
@@ -99,7 +99,7 @@ const RING: i64 = 1;
 /// (at least a tile an update, at most [`AHEAD`]), instead of [`AHEAD`]
 /// tiles whenever any are missing, keeps a slow viewer's frames from
 /// decoding four tiles at once (1.9 % of a frame at one texel a frame,
-/// against 0.25 % on average; docs/pack.md).
+/// against 0.25 % on average; docs/how-to/pack.md).
 const AHEAD_RATE: u64 = 4;
 
 /// What one call of [`Pyramid::build_around`] did.

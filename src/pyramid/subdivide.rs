@@ -6,7 +6,7 @@
 //! that a GPU pass can rebuild a level from the coarser one by repeating
 //! it (`src/gpu/shaders/update.wgsl`). The arithmetic is f32 in a fixed
 //! order with no fused operations and none of the shapes lavapipe's
-//! shader compiler rewrites (docs/raster-rules.md).
+//! shader compiler rewrites (docs/reference/raster-rules.md).
 
 use super::PyramidLevel;
 use rayon::prelude::*;

@@ -1,4 +1,4 @@
-//! Homogeneous clipping as Mesa's draw module does it (docs/raster-rules.md
+//! Homogeneous clipping as Mesa's draw module does it (docs/reference/raster-rules.md
 //! rule 6): with a depth attachment there is no guard band, so every
 //! triangle that crosses the frustum is cut against the planes its vertices
 //! fall outside of, in a fixed order, and the polygon is fanned from its

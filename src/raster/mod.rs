@@ -1,6 +1,6 @@
 //! The reference rasteriser: clip-space triangles in, a depth buffer and a
 //! per-pixel triangle id (a visibility buffer) out, following
-//! `docs/raster-rules.md` so that it is bit-identical to lavapipe.
+//! `docs/reference/raster-rules.md` so that it is bit-identical to lavapipe.
 //!
 //! Stages: `setup` (viewport, snap, planes), `clip` (Mesa's clipper),
 //! `bin` (64×64 tiles), `tile` (the scalar reference: three edge tests and a

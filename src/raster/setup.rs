@@ -1,5 +1,5 @@
 //! Viewport transform, 8-bit snap and triangle setup: integer edge functions
-//! with the top-left rule and f32 attribute planes (docs/raster-rules.md 1–5).
+//! with the top-left rule and f32 attribute planes (docs/reference/raster-rules.md 1–5).
 //!
 //! Every expression here is written in the order the rules give, because a
 //! different order (or a fused multiply-add where none is meant) changes bits.

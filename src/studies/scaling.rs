@@ -1,6 +1,6 @@
 //! The scaling stage: what frame time, pyramid building, incremental updates
 //! and memory cost as the terrain grows (the targets are in
-//! `docs/performance.md`).
+//! `docs/explanation/performance.md`).
 //!
 //! - **Size independence** (Holkner's claim for clipmaps): one view of
 //!   procedural terrains of several sizes with the same n and L. The clipmap

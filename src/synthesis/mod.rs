@@ -6,7 +6,7 @@
 //! subdivision, and the amplitude each finer level gets from the map's own
 //! measured detail. A synthesised sample is f32 arithmetic in a fixed
 //! order with no fused operations and none of the shapes lavapipe's shader
-//! compiler rewrites (docs/raster-rules.md), so a GPU pass can repeat it
+//! compiler rewrites (docs/reference/raster-rules.md), so a GPU pass can repeat it
 //! bit for bit; the table comes from integer arithmetic only (no `exp`,
 //! `ln` or `cos`, whose last bits differ between C libraries), so a
 //! synthesised level is the same bits on any machine and any thread count.

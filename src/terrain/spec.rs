@@ -34,7 +34,7 @@ pub struct Spec {
     /// given in the same world coordinates.
     #[serde(default)]
     pub origin: [f64; 2],
-    /// Levels finer than the map, synthesised (LH04; docs/synthesis.md).
+    /// Levels finer than the map, synthesised (LH04; docs/explanation/synthesis.md).
     #[serde(default)]
     pub synthesis: Option<SynthesisSpec>,
 }

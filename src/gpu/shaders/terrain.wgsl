@@ -1,5 +1,5 @@
 // terraclip's wgpu terrain pipeline. Every floating-point step repeats the CPU
-// reference in the same order (docs/raster-rules.md rule 7): the vertex stage of
+// reference in the same order (docs/reference/raster-rules.md rule 7): the vertex stage of
 // src/frame/vertex.rs and src/clipmap/morph.rs, the varyings of src/frame/mod.rs and the
 // per-pixel shading of src/shade/. lavapipe lowers `fma` to a multiply and an
 // add and does not fuse, so plain `a * b + c` here equals the CPU's unfused

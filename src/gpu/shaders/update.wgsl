@@ -6,7 +6,7 @@
 // its slope is the central difference of two such samples. Every
 // operation is the CPU's (src/pyramid/subdivide.rs, src/synthesis/mod.rs,
 // src/pack/codec.rs, src/shade/normals.rs) in the same order and the same
-// shapes, so lavapipe gives the same bits (docs/raster-rules.md).
+// shapes, so lavapipe gives the same bits (docs/reference/raster-rules.md).
 
 struct Synth {
     // Fine level: width, height; coarse level: width, height.
