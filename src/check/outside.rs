@@ -371,9 +371,12 @@ fn channel_step(p: &[u8], q: &[u8]) -> u8 {
 /// The depth that a 24-bit fixed-point buffer holds for `z`, read back
 /// as float: the nearest k / (2^24 − 1).
 fn d24(z: f32) -> f32 {
-    const MAX: f64 = 16_777_215.0;
-    ((f64::from(z) * MAX).round() / MAX) as f32
+    ((f64::from(z) * D24_MAX).round() / D24_MAX) as f32
 }
+
+/// The largest 24-bit fixed-point depth, 2^24 − 1: one grid step is its
+/// reciprocal.
+const D24_MAX: f64 = 16_777_215.0;
 
 /// Refuses a depth buffer made to another convention than the reference's
 /// (Depth32Float in 0..1, cleared to 1, LESS, 0 at the near plane, top row
@@ -484,7 +487,7 @@ pub fn check_convention(path: &Path, reference: &[f32], theirs: &[f32], w: usize
         .iter()
         .filter(|&&i| {
             d24(theirs[i]) == theirs[i]
-                && (f64::from(theirs[i]) - f64::from(reference[i])).abs() <= 1.0 / 16_777_215.0
+                && (f64::from(theirs[i]) - f64::from(reference[i])).abs() <= 1.0 / D24_MAX
         })
         .count();
     if fine.len() >= 16 && on_grid == fine.len() {

@@ -12,7 +12,7 @@ fn check(reference: &[f32], theirs: &[f32], w: usize) -> std::result::Result<(),
 }
 
 /// The 24-bit grid's step.
-const STEP: f64 = 1.0 / 16_777_215.0;
+const STEP: f64 = 1.0 / D24_MAX;
 
 #[test]
 fn an_empty_or_one_row_image_is_never_upside_down() {
