@@ -165,6 +165,12 @@ pub fn edge_ends(e: &[crate::raster::setup::Edge; 3]) -> [[[f64; 2]; 2]; 3] {
 
 /// The distance from point `c` to the segment from `p` to `q`.
 pub fn segment_distance(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
+    segment_nearest(c, p, q).1
+}
+
+/// Where on the segment from `p` to `q` point `c` is nearest (0 at `p`,
+/// 1 at `q`), and how far it is from there.
+fn segment_nearest(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> (f64, f64) {
     let (dx, dy) = (q[0] - p[0], q[1] - p[1]);
     let len2 = dx * dx + dy * dy;
     let t = if len2 > 0.0 {
@@ -172,7 +178,129 @@ pub fn segment_distance(c: [f64; 2], p: [f64; 2], q: [f64; 2]) -> f64 {
     } else {
         0.0
     };
-    (c[0] - p[0] - t * dx).hypot(c[1] - p[1] - t * dy)
+    (t, (c[0] - p[0] - t * dx).hypot(c[1] - p[1] - t * dy))
+}
+
+/// The pixels where a hole may open legally: those whose centre lies
+/// within [`tie_distance`] of an *open* edge of `frame`'s mesh, one that
+/// no other triangle shares (compared by the exact bits of its two ends).
+///
+/// [`TOLERANCE_HOLES`] is 0 because coverage is continuous across an edge
+/// two triangles share. An open edge inside the picture is a crack the
+/// mesh itself has (`morph-off` draws them on purpose); moving its ends by
+/// 2^-bits px moves the crack's border, and a pixel centre that close to it
+/// may be background in one image and surface in the other with both
+/// renderers conforming. A watertight mesh has open edges only on its
+/// rim, where the background is not enclosed and no hole is counted, so
+/// this excuses nothing there. The clipmap's level seams are closed by
+/// degenerate triangles, whose edges pair up the T-junctions.
+///
+/// Only where the edge can be seen: its depth at the nearest point is at
+/// most the farthest of `depth` (the reference's) over the pixel's 3×3
+/// neighbourhood, plus [`TOLERANCE_DEPTH_ULP`]. So the rim of a level
+/// hidden behind a hill excuses no hole in the hill.
+pub fn open_band(frame: &crate::frame::Frame, depth: &[f32], bits: u32) -> Vec<bool> {
+    use std::collections::HashMap;
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let mut band = vec![false; w * h];
+    let key = |v: [f32; 3]| v.map(f32::to_bits);
+    // Each edge (its ends' bits, in order) -> how many triangles use it,
+    // and its two ends.
+    type Ends = ([u32; 3], [u32; 3]);
+    let mut uses: HashMap<Ends, (usize, [[f32; 3]; 2])> = HashMap::new();
+    for t in frame.positions.chunks_exact(3) {
+        for k in 0..3 {
+            let (p, q) = (t[k], t[(k + 1) % 3]);
+            let (a, b) = (key(p), key(q));
+            if a == b {
+                continue;
+            }
+            let e = if a < b { (a, b) } else { (b, a) };
+            uses.entry(e).or_insert((0, [p, q])).0 += 1;
+        }
+    }
+    let m = frame.uniforms.view_proj.map(|c| c.map(f64::from));
+    let clip = |p: [f32; 3]| -> [f64; 4] {
+        let v = [p[0] as f64, p[1] as f64, p[2] as f64, 1.0];
+        [0, 1, 2, 3].map(|r| (0..4).map(|c| m[c][r] * v[c]).sum())
+    };
+    // Pixel-index coordinates: pixel (x, y)'s centre at (x, y).
+    let window = |c: [f64; 4]| {
+        [
+            (c[0] / c[3] + 1.0) / 2.0 * w as f64 - 0.5,
+            (1.0 - c[1] / c[3]) / 2.0 * h as f64 - 0.5,
+            c[2] / c[3],
+        ]
+    };
+    // The farthest reference depth over a pixel's 3×3 neighbourhood.
+    let farthest = |px: usize, py: usize| {
+        let (x0, x1) = (px.saturating_sub(1), (px + 1).min(w - 1));
+        let (y0, y1) = (py.saturating_sub(1), (py + 1).min(h - 1));
+        (y0..=y1)
+            .flat_map(|y| (x0..=x1).map(move |x| depth[y * w + x]))
+            .fold(0f32, f32::max)
+    };
+    let tie = tie_distance(bits);
+    for &(n, [p, q]) in uses.values() {
+        if n != 1 {
+            continue;
+        }
+        // Cut at the near plane (clip z = 0, depth 0..1), as the
+        // rasteriser clips, so that both ends have w > 0.
+        let (mut a, mut b) = (clip(p), clip(q));
+        if a[2] < 0.0 && b[2] < 0.0 {
+            continue;
+        }
+        if a[2] < 0.0 || b[2] < 0.0 {
+            let t = a[2] / (a[2] - b[2]);
+            let cut = [0, 1, 2, 3].map(|k| a[k] + t * (b[k] - a[k]));
+            if a[2] < 0.0 {
+                a = cut;
+            } else {
+                b = cut;
+            }
+        }
+        if a[3] <= 0.0 || b[3] <= 0.0 {
+            continue;
+        }
+        let (p, q) = (window(a), window(b));
+        if !(p.iter().chain(&q).all(|v| v.is_finite())) {
+            continue;
+        }
+        let lo = |a: f64, b: f64, n: usize| ((a.min(b) - tie).floor().max(0.0) as usize).min(n);
+        let hi =
+            |a: f64, b: f64, n: usize| (((a.max(b) + tie).ceil().max(-1.0) + 1.0) as usize).min(n);
+        let (p2, q2) = ([p[0], p[1]], [q[0], q[1]]);
+        for py in lo(p[1], q[1], h)..hi(p[1], q[1], h) {
+            for px in lo(p[0], q[0], w)..hi(p[0], q[0], w) {
+                let (t, dist) = segment_nearest([px as f64, py as f64], p2, q2);
+                if band[py * w + px] || dist > tie {
+                    continue;
+                }
+                // Window depth is linear along the edge in window space.
+                let z = p[2] + t * (q[2] - p[2]);
+                let far = farthest(px, py);
+                let ulps = f64::from(TOLERANCE_DEPTH_ULP) * f64::from(far) / 8_388_608.0;
+                if z <= f64::from(far) + ulps {
+                    band[py * w + px] = true;
+                }
+            }
+        }
+    }
+    band
+}
+
+/// Counts a hole at a pixel of `open` (see [`open_band`]) as the unmatched
+/// pixel it also is, not as a hole.
+pub fn excuse_open_holes(d: &mut Difference, tier: &mut [Tier], open: &[bool]) {
+    for (t, _) in tier
+        .iter_mut()
+        .zip(open)
+        .filter(|(t, o)| **t == Tier::Hole && **o)
+    {
+        *t = Tier::Unmatched;
+        d.holes_px -= 1;
+    }
 }
 
 /// How two images differ.
