@@ -349,6 +349,66 @@ pub enum Tier {
     Hole,
 }
 
+/// What the reference shows, per pixel, where its centre may move to: the
+/// least and greatest of each colour channel and of depth over the
+/// reference drawn at the pixel centre and shifted by (±s, ±s) px, s the
+/// renderer's vertex snap plus ours (2^-N + 1/256).
+///
+/// Why that is what a renderer may show: moving a triangle's vertices by
+/// d_j (each within ±s per axis) and reading it at p gives, exactly, the
+/// unmoved triangle read at q = p − Σ λ'_j d_j, λ' the barycentrics of p
+/// in the moved triangle (screen-space barycentrics, which perspective
+/// correction then weights by the unmoved 1/w_j). Inside it λ' ≥ 0 and
+/// sums to 1, so q lies in the square p + [−s, s]². Every varying is
+/// affine in screen space up to that weighting, so its extremes over the
+/// square are at the corners; the colour, a smooth function of them, is
+/// taken at the same corners. In a triangle a fraction of a pixel wide the
+/// varyings change fast, and a 1/16 px move changes colour by more than
+/// the step the "same" tier otherwise allows, while neighbouring pixels,
+/// which lie in other triangles, do not show it.
+#[derive(Clone, Debug, Default)]
+pub struct Reach {
+    /// Least colour per pixel.
+    pub lo: Vec<[u8; 4]>,
+    /// Greatest colour per pixel.
+    pub hi: Vec<[u8; 4]>,
+    /// Least depth per pixel.
+    pub zlo: Vec<f32>,
+    /// Greatest depth per pixel.
+    pub zhi: Vec<f32>,
+}
+
+impl Reach {
+    /// The reach of one image: each pixel its own value.
+    pub fn of(img: &Image) -> Reach {
+        let rgba: Vec<[u8; 4]> = img
+            .rgba
+            .chunks_exact(4)
+            .map(|p| [p[0], p[1], p[2], p[3]])
+            .collect();
+        Reach {
+            lo: rgba.clone(),
+            hi: rgba,
+            zlo: img.depth.clone(),
+            zhi: img.depth.clone(),
+        }
+    }
+
+    /// Widens each pixel's range to hold `img`'s value (same size).
+    pub fn widen(&mut self, img: &Image) {
+        for (i, p) in img.rgba.chunks_exact(4).enumerate() {
+            for (k, &v) in p.iter().enumerate() {
+                self.lo[i][k] = self.lo[i][k].min(v);
+                self.hi[i][k] = self.hi[i][k].max(v);
+            }
+        }
+        for (i, &z) in img.depth.iter().enumerate() {
+            self.zlo[i] = self.zlo[i].min(z);
+            self.zhi[i] = self.zhi[i].max(z);
+        }
+    }
+}
+
 /// One pixel as both back ends drew it (`a` is the reference).
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
 pub struct PixelPair {
@@ -403,17 +463,20 @@ impl Difference {
     /// [`Difference::within`], and each pixel's [`Tier`] (empty when the
     /// images are not comparable): what `compare`'s error mask shows.
     pub fn tiers(a: &Image, b: &Image, band: Option<&[bool]>) -> (Difference, Vec<Tier>) {
-        Difference::tiers_with(a, b, band, TOLERANCE_SUBPIXEL)
+        Difference::tiers_with(a, b, band, TOLERANCE_SUBPIXEL, None)
     }
 
     /// [`Difference::tiers`] for a renderer whose vertices may move by
     /// `subpixel` px rather than Vulkan's least precision, 1/16 px: the
-    /// depth change over that move still counts as "same".
+    /// depth change over that move still counts as "same". With `reach`,
+    /// so does a colour or depth within a step (or the depth tolerance) of
+    /// what the reference shows over the move (see [`Reach`]).
     pub fn tiers_with(
         a: &Image,
         b: &Image,
         band: Option<&[bool]>,
         subpixel: f32,
+        reach: Option<&Reach>,
     ) -> (Difference, Vec<Tier>) {
         let mut d = Difference::default();
         let (w, h) = (a.width as usize, a.height as usize);
@@ -464,19 +527,37 @@ impl Difference {
             }
             g
         };
+        // A reach of another size is not this comparison's.
+        let reached = reach.filter(|r| r.lo.len() == px && r.hi.len() == px);
         // The same pixel: colour within a step, depth within a few ULP, or
         // within the depth change over `subpixel` px (1/16 px, the coarsest
         // vertex snap Vulkan allows, subPixelPrecisionBits ≥ 4, unless the
         // caller knows better): a steep wall at the near plane changes
         // depth by a quarter per pixel.
         let same = |i: usize, px: usize, py: usize| {
+            let in_reach = |r: &Reach| {
+                (0..4).all(|k| {
+                    let v = b.rgba[4 * i + k];
+                    v >= r.lo[i][k].saturating_sub(TOLERANCE_CHANNEL)
+                        && v <= r.hi[i][k].saturating_add(TOLERANCE_CHANNEL)
+                })
+            };
             if channel_diff(&a.rgba[4 * i..4 * i + 4], &b.rgba[4 * i..4 * i + 4])
                 > TOLERANCE_CHANNEL
+                && !reached.is_some_and(in_reach)
             {
                 return false;
             }
             if !depth || depth_ulp(a.depth[i], b.depth[i]) <= TOLERANCE_DEPTH_ULP {
                 return true;
+            }
+            if let Some((lo, hi)) = reached.and_then(|r| Some((r.zlo.get(i)?, r.zhi.get(i)?))) {
+                let z = b.depth[i].to_bits();
+                if z >= lo.to_bits().saturating_sub(TOLERANCE_DEPTH_ULP)
+                    && z <= hi.to_bits().saturating_add(TOLERANCE_DEPTH_ULP)
+                {
+                    return true;
+                }
             }
             let slope = steep(a, px, py).max(steep(b, px, py));
             (a.depth[i] - b.depth[i]).abs() <= slope * subpixel
@@ -748,6 +829,50 @@ mod tests {
         assert!(!d.passes(true) && !d.passes(false), "{d:?}");
         assert!(d.colour_px_differ >= px && d.unmatched_px >= px, "{d:?}");
         d
+    }
+
+    /// A pixel 5 steps and 1,000 ULP off is "same" only where the reach
+    /// holds it, to within a step and 16 ULP; a reach of another size is
+    /// not used.
+    #[test]
+    fn the_reach_makes_a_pixel_the_same_only_within_it() {
+        let a = flat(4, 3);
+        let mut b = flat(4, 3);
+        b.rgba[4 * 5..4 * 5 + 3].copy_from_slice(&[12, 12, 12]);
+        b.depth[5] = f32::from_bits(0.5f32.to_bits() + 1000);
+        let same = |r: Option<&Reach>| {
+            let (d, tier) = Difference::tiers_with(&a, &b, None, TOLERANCE_SUBPIXEL, r);
+            (tier[5] == Tier::Same, d.outside_band_px)
+        };
+        assert_eq!(same(None), (false, 1));
+        let mut reach = Reach::of(&a);
+        let mut other = flat(4, 3);
+        other.rgba[4 * 5..4 * 5 + 3].copy_from_slice(&[11, 11, 11]);
+        other.depth[5] = f32::from_bits(0.5f32.to_bits() + 984);
+        reach.widen(&other);
+        assert_eq!((reach.lo[5], reach.hi[5]), ([7, 7, 7, 7], [11, 11, 11, 7]));
+        assert_eq!(same(Some(&reach)), (true, 0));
+        // One step short on colour, or 17 ULP short on depth: not same.
+        let mut short = reach.clone();
+        short.hi[5] = [10, 10, 10, 7];
+        assert_eq!(same(Some(&short)), (false, 1));
+        let mut short = reach.clone();
+        short.zhi[5] = f32::from_bits(0.5f32.to_bits() + 983);
+        assert_eq!(same(Some(&short)), (false, 1));
+        // The low side counts the same way.
+        let mut low = b.clone();
+        low.rgba[4 * 5..4 * 5 + 3].copy_from_slice(&[2, 2, 2]);
+        low.depth[5] = f32::from_bits(0.5f32.to_bits() - 1000);
+        let mut below = Reach::of(&a);
+        let mut other = flat(4, 3);
+        other.rgba[4 * 5..4 * 5 + 3].copy_from_slice(&[3, 3, 3]);
+        other.depth[5] = f32::from_bits(0.5f32.to_bits() - 984);
+        below.widen(&other);
+        let (_, tier) = Difference::tiers_with(&a, &low, None, TOLERANCE_SUBPIXEL, Some(&below));
+        assert_eq!(tier[5], Tier::Same);
+        let mut small = Reach::of(&flat(2, 2));
+        small.widen(&flat(2, 2));
+        assert_eq!(same(Some(&small)), (false, 1));
     }
 
     #[test]

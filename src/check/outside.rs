@@ -5,7 +5,7 @@
 //! the comparison wgpu's own tests use).
 
 use crate::check::compare::{
-    Difference, PixelPair, Tier, MIN_SUBPIXEL_BITS, TOLERANCE_CHANNEL, TOLERANCE_DEPTH_ULP,
+    Difference, PixelPair, Reach, Tier, MIN_SUBPIXEL_BITS, TOLERANCE_CHANNEL, TOLERANCE_DEPTH_ULP,
 };
 use crate::error::{write_atomic, Error, Result};
 use crate::export::Exported;
@@ -642,6 +642,28 @@ impl Options {
 /// would blame us.
 pub const SUBPIXEL_BITS: std::ops::RangeInclusive<u32> = MIN_SUBPIXEL_BITS..=8;
 
+/// The reference's [`Reach`] for a renderer with `bits` of sub-pixel
+/// precision: the frame drawn with every vertex shifted to each corner of
+/// the square its centre may move in, (±s, ±s) px with s = 2^-bits +
+/// 1/256, through the view-projection (the varyings do not depend on it).
+fn reach(e: &Exported, bits: u32) -> Reach {
+    let s = 0.5f32.powi(bits as i32) + 1.0 / 256.0;
+    let mut r = Reach::of(&e.image);
+    for (dx, dy) in [(-s, -s), (s, -s), (-s, s), (s, s)] {
+        let mut f = e.frame.clone();
+        // Window x moves by dx where clip x moves by 2 dx / width · w.
+        let (sx, sy) = (2.0 * dx / f.width as f32, 2.0 * dy / f.height as f32);
+        for c in &mut f.uniforms.view_proj {
+            c[0] += sx * c[3];
+            c[1] -= sy * c[3];
+        }
+        let opts = crate::render::RenderOptions::default();
+        let (img, _) = crate::render::draw(&f, &opts, &mut Default::default());
+        r.widen(&img);
+    }
+    r
+}
+
 /// Compares `theirs` (colour, and depth when not empty) with the export's
 /// reference as `opts` says, and with `out` writes `diff.png` and
 /// `flip.png` there.
@@ -729,7 +751,11 @@ pub fn compare(
     let band =
         crate::check::compare::tie_band_for(&raster, e.frame.effects.wireframe, opts.subpixel_bits);
     let subpixel = 0.5f32.powi(opts.subpixel_bits as i32);
-    let (mut d, mut tier) = Difference::tiers_with(&reference, theirs, Some(&band), subpixel);
+    // What the reference shows where a pixel centre may move to; exact
+    // mode does not look.
+    let reach = (opts.mode != Mode::Exact).then(|| reach(e, opts.subpixel_bits));
+    let (mut d, mut tier) =
+        Difference::tiers_with(&reference, theirs, Some(&band), subpixel, reach.as_ref());
     // A crack the mesh itself has may open or close by a sub-pixel move.
     if depth {
         let open = crate::check::compare::open_band(&e.frame, &reference.depth, opts.subpixel_bits);
@@ -803,7 +829,14 @@ pub fn compare(
             rgba: reference.rgba.clone(),
             ..theirs.clone()
         };
-        Difference::tiers_with(&reference, &same_colour, Some(&band), subpixel).0
+        Difference::tiers_with(
+            &reference,
+            &same_colour,
+            Some(&band),
+            subpixel,
+            reach.as_ref(),
+        )
+        .0
     } else {
         Difference::default()
     };
