@@ -52,10 +52,49 @@ fn every_golden_redrawn_from_its_export_is_the_reference() {
         // GLSL for every frame, listed in the manifest; `.ci/outside-gl`
         // draws with it and compares exactly. The texture reads are there
         // exactly when the frame's effects read effects.exr.
-        for shader in ["terrain.vert", "terrain.frag"] {
+        for shader in [
+            "terrain.vert",
+            "terrain.frag",
+            "terrain-es.vert",
+            "terrain-es.frag",
+        ] {
             let listed = e.manifest.files.iter().any(|f| f.name == shader);
             assert!(dir.join(shader).is_file() && listed, "{name}: {shader}");
         }
+        // The ES pair has neither qualifier ES 3.00 lacks, and carries
+        // each linear varying through clip w: it is the desktop pair
+        // otherwise (`.ci/outside-gl` draws both).
+        let es = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+        let (es_vert, es_frag) = (es("terrain-es.vert"), es("terrain-es.frag"));
+        for src in [&es_vert, &es_frag] {
+            assert!(src.starts_with("#version 300 es\n"), "{name}");
+            assert!(src.contains("precision highp float;"), "{name}");
+            assert!(
+                !src.contains("precise ") && !src.contains("noperspective"),
+                "{name}"
+            );
+        }
+        for v in e
+            .info
+            .varyings
+            .iter()
+            .filter(|v| v.interpolation == "linear")
+        {
+            let a = &v.attribute;
+            assert!(
+                es_vert.contains(&format!("w{a} = {a} * p.w;")),
+                "{name}: {a}"
+            );
+            assert!(
+                es_frag.contains(&format!("v{a} = w{a} * gl_FragCoord.w;")),
+                "{name}: {a}"
+            );
+        }
+        assert_eq!(
+            es_frag.contains("gl_FragCoord.w"),
+            name == "wireframe",
+            "{name}: only the wire's varyings are linear"
+        );
         let has = |effect: &str| e.info.effects.iter().any(|f| f.name() == effect);
         let frag = std::fs::read_to_string(dir.join("terrain.frag")).unwrap();
         assert!(

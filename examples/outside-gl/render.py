@@ -15,8 +15,10 @@ little-endian float depth, top row first), which
     terraclip compare EXPORT_DIR --image OUT_PREFIX.png --depth OUT_PREFIX.f32
 
 judges. It compiles the export's terrain.vert and terrain.frag when the
-export has them, and with OWN_SHADERS=1, or without them, its own shader
-written from the docs' arithmetic. MISTAKE=no-clip-control, last-vertex, d24 or (with OWN_SHADERS=1)
+export has them; with SHADERS=es the export's GLSL ES 3.00 pair,
+terrain-es.vert and terrain-es.frag (a GL 4.3+ context compiles ES 3.00
+as WebGL 2 would); and with OWN_SHADERS=1, or without them, its own
+shader written from the docs' arithmetic. MISTAKE=no-clip-control, last-vertex, d24 or (with OWN_SHADERS=1)
 hardware-filter in the environment
 leaves out one of the settings the docs name, to see what `compare` says.
 It draws every effect: lambert, phong, fog, level-tint, wireframe, morph
@@ -351,9 +353,12 @@ def main():
     ).replace("#version 450", "#version 450\n" + defines, 1)
     # The export's own GLSL when it has it (terrain.vert, terrain.frag),
     # else the shader above, written from the docs' arithmetic.
-    if os.path.exists(f"{ref}/terrain.vert") and not os.environ.get("OWN_SHADERS"):
-        vs = open(f"{ref}/terrain.vert").read()
-        fs = open(f"{ref}/terrain.frag").read()
+    stem = "terrain-es" if os.environ.get("SHADERS") == "es" else "terrain"
+    if os.path.exists(f"{ref}/{stem}.vert") and not os.environ.get("OWN_SHADERS"):
+        vs = open(f"{ref}/{stem}.vert").read()
+        fs = open(f"{ref}/{stem}.frag").read()
+    elif stem == "terrain-es":
+        sys.exit(f"{ref}: no {stem}.vert and {stem}.frag in the export")
     prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
 
     # 4 columns of 4, as GLSL stores a mat4.

@@ -22,18 +22,53 @@
 use super::VaryingFile;
 use crate::shade::Effect;
 
+/// Which GLSL the shaders are written in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dialect {
+    /// Desktop GLSL 4.50: `precise` and `noperspective`, exact on llvmpipe.
+    Desktop,
+    /// GLSL ES 3.00 (WebGL 2, OpenGL ES 3.0), which has neither
+    /// qualifier. A screen-linear varying is passed multiplied by clip w
+    /// and perspective-interpolated, then multiplied by `gl_FragCoord.w`
+    /// (1/w, interpolated screen-linearly): Σλᵢvᵢwᵢ/wᵢ ÷ Σλᵢ/wᵢ · Σλᵢ/wᵢ =
+    /// Σλᵢvᵢ, the screen-linear value, in two more roundings. Without
+    /// `precise` a compiler may fuse a product and a sum, and round once
+    /// where terraclip rounds twice.
+    Es300,
+}
+
 /// The vertex and fragment shaders for a frame with `effects` and
 /// `varyings` (in `frame.json`'s order).
 pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> (String, String) {
+    shaders_in(Dialect::Desktop, effects, varyings)
+}
+
+/// [`shaders`] in `dialect`.
+pub fn shaders_in(
+    dialect: Dialect,
+    effects: &[Effect],
+    varyings: &[VaryingFile],
+) -> (String, String) {
+    let es = dialect == Dialect::Es300;
     let ty = |v: &VaryingFile| match v.components {
         1 => "float".to_string(),
         n => format!("vec{n}"),
     };
+    let linear = |v: &VaryingFile| v.interpolation == "linear";
     let qual = |v: &VaryingFile| {
-        if v.interpolation == "linear" {
+        if linear(v) && !es {
             "noperspective "
         } else {
             ""
+        }
+    };
+    // The name a varying travels under between the stages: in ES a
+    // screen-linear one travels multiplied by w.
+    let wire_name = |v: &VaryingFile| {
+        if linear(v) && es {
+            format!("w{}", v.attribute)
+        } else {
+            format!("v{}", v.attribute)
         }
     };
     let lines =
@@ -50,8 +85,14 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> (String, String)
          \x20       + view_proj[1] * POSITION.y) + view_proj[0] * POSITION.x;\n\
          \x20   gl_Position = p;\n{}\n}}\n",
         lines(&|v| format!("in {} {};", ty(v), v.attribute)),
-        lines(&|v| format!("{}out {} v{};", qual(v), ty(v), v.attribute)),
-        lines(&|v| format!("    v{0} = {0};", v.attribute)),
+        lines(&|v| format!("{}out {} {};", qual(v), ty(v), wire_name(v))),
+        lines(&|v| {
+            if linear(v) && es {
+                format!("    {} = {} * p.w;", wire_name(v), v.attribute)
+            } else {
+                format!("    v{0} = {0};", v.attribute)
+            }
+        }),
     );
     let has = |e: Effect| effects.contains(&e);
     let albedo = if varyings.iter().any(|v| v.attribute == "_ALBEDO") {
@@ -124,11 +165,47 @@ pub fn shaders(effects: &[Effect], varyings: &[VaryingFile]) -> (String, String)
          \x20   return l > 0.0 ? a / l : a;\n\
          }}\n\
          {}\n\
-         void main() {{\n{body}    colour = vec4(c, 1.0);\n}}\n",
-        lines(&|v| format!("{}in {} v{};", qual(v), ty(v), v.attribute)),
+         void main() {{\n{}{body}    colour = vec4(c, 1.0);\n}}\n",
+        lines(&|v| {
+            if linear(v) && es {
+                format!("in {0} {1};\n{0} v{2};", ty(v), wire_name(v), v.attribute)
+            } else {
+                format!("{}in {} v{};", qual(v), ty(v), v.attribute)
+            }
+        }),
         textures(shadows, mapped, varyings),
+        varyings
+            .iter()
+            .filter(|v| linear(v) && es)
+            .map(|v| format!(
+                "    v{} = {} * gl_FragCoord.w;\n",
+                v.attribute,
+                wire_name(v)
+            ))
+            .collect::<String>(),
     );
-    (vert, frag)
+    match dialect {
+        Dialect::Desktop => (vert, frag),
+        Dialect::Es300 => (to_es(&vert), to_es(&frag)),
+    }
+}
+
+/// Desktop GLSL 4.50 as GLSL ES 3.00: the version line, high precision
+/// for every type that has a default, and no `precise` (ES 3.20 has it;
+/// ES 3.00, which WebGL 2 is, does not). The linear varyings are written
+/// for ES by [`shaders_in`] already.
+fn to_es(src: &str) -> String {
+    src.replacen(
+        "#version 450\n",
+        "#version 300 es\n\
+         // GLSL ES 3.00: without `precise`, a compiler may fuse; expect\n\
+         // `compare --mode tiered`, not exact.\n\
+         precision highp float;\n\
+         precision highp int;\n\
+         precision highp sampler2D;\n",
+        1,
+    )
+    .replace("precise ", "")
 }
 
 /// The texture-reading functions and their per-draw uniforms, for the

@@ -10,6 +10,7 @@
 //! | `camera.json` | view and projection (f64, camera-relative), the f32 view-projection the clip positions were made with, viewport, near and far, the depth convention, the floating origin |
 //! | `frame.json` | what shading needs besides the mesh: effects, shading constants, varyings, drawn levels, and what the EXR files hold |
 //! | `terrain.vert`, `terrain.frag` | the shading as GLSL 4.50 for an outside OpenGL renderer ([`glsl`]) |
+//! | `terrain-es.vert`, `terrain-es.frag` | the same as GLSL ES 3.00, for WebGL 2 and OpenGL ES |
 //! | `colour.png` | the reference colour, RGBA8 |
 //! | `depth.exr`, `depth.f32` | the reference Depth32Float, as OpenEXR and as raw little-endian f32 rows, top row first |
 //! | `clipmap.exr` | each clipmap level's toroid of heights, one layer a level (clipmap scenes only) |
@@ -448,6 +449,13 @@ pub fn files(src: &Source) -> Result<Files> {
     let (vert, frag) = glsl::shaders(&frame_file.effects, &frame_file.varyings);
     out.push(("terrain.vert".into(), vert.into_bytes()));
     out.push(("terrain.frag".into(), frag.into_bytes()));
+    let (vert, frag) = glsl::shaders_in(
+        glsl::Dialect::Es300,
+        &frame_file.effects,
+        &frame_file.varyings,
+    );
+    out.push(("terrain-es.vert".into(), vert.into_bytes()));
+    out.push(("terrain-es.frag".into(), frag.into_bytes()));
     out.push(("colour.png".into(), src.image.png()?));
     let (w, h) = (src.image.width as usize, src.image.height as usize);
     out.push((
