@@ -1126,4 +1126,154 @@ mod tests {
         assert_eq!((c.raw, c.rec), (Some(0.3f32.to_bits()), 0.3));
         assert_eq!(lat.code(1.5, 0.0).raw, None);
     }
+
+    /// The largest upsampled residual is 2^24 − 2 steps: that many is a
+    /// residual, one more is raw, and half as many is a residual.
+    #[test]
+    fn the_upsampled_residual_limit_is_two_to_the_24_less_two() {
+        let up = Quant::Upsampled { max_error: 0.5 };
+        let at = |x: f32| up.code(x, 0.0);
+        let c = at(16_777_214.0);
+        assert_eq!((c.q, c.raw), (16_777_214, None));
+        assert_eq!(at(16_777_215.0).raw, Some(16_777_215f32.to_bits()));
+        assert_eq!(at(8_388_608.0).raw, None);
+    }
+
+    /// Where the rounded residual misses the bound by the f32 rounding of
+    /// the reconstruction, the one below or above it is tried, in that
+    /// order. The cases were found by search: x and p as f32 values, a
+    /// bound of 1e-5 against f32 spacings of 1e-6 to 1e-4 between 14 and 1,651,
+    /// and residuals within the upsampled limit.
+    #[test]
+    fn a_residual_one_off_the_rounded_one_is_taken_when_it_reaches() {
+        let cases = [
+            (
+                Quant::Upsampled { max_error: 1e-5 },
+                406.12503f32,
+                117.56102752685547,
+                -1,
+            ),
+            (
+                Quant::Upsampled { max_error: 1e-5 },
+                14.798f32,
+                -235.8000030517578,
+                1,
+            ),
+            (
+                Quant::Step { max_error: 1e-5 },
+                128.0f32,
+                1650.93212890625,
+                -1,
+            ),
+            (
+                Quant::Step { max_error: 1e-5 },
+                64.0f32,
+                391.14801025390625,
+                1,
+            ),
+        ];
+        for (quant, x, p, off) in cases {
+            let s = match quant {
+                Quant::Upsampled { max_error } => (2.0 * max_error) as f32 as f64,
+                _ => 2e-5,
+            };
+            let rounded = ((x as f64 - p) / s).round() as i64;
+            let c = quant.code(x, p);
+            assert_eq!((c.q, c.raw), (rounded + off, None), "{quant:?} {x} {p}");
+            assert!((c.rec as f64 - x as f64).abs() <= 1e-5);
+            assert!((quant.rec(p, rounded) as f64 - x as f64).abs() > 1e-5);
+        }
+    }
+
+    /// A lattice index of 1e15 or more, of the sample or of the
+    /// prediction, is coded raw (the i64 arithmetic is kept far from
+    /// overflow), even where the residual would reconstruct it.
+    #[test]
+    fn lattice_indices_from_1e15_on_are_raw() {
+        let x = (1u64 << 50) as f32;
+        let lat = Quant::Lattice {
+            offset: 0.0,
+            scale: 1.125899906842624,
+        };
+        assert_eq!(((x as f64) / 1.125899906842624).round(), 1e15);
+        assert_eq!(lat.rec(0.0, 1_000_000_000_000_000).to_bits(), x.to_bits());
+        assert_eq!(lat.code(x, 0.0).raw, Some(x.to_bits()));
+        assert_eq!(lat.code(0.0, x as f64).raw, Some(0f32.to_bits()));
+        // Half the index: a residual.
+        let y = (1u64 << 49) as f32;
+        assert_eq!(lat.code(y, 0.0).raw, None);
+        assert_eq!(lat.code(0.0, y as f64).raw, None);
+    }
+
+    /// f32 bits as ordered integers and back: every value comes back with
+    /// its bits, ±0 included, and the order is the values'.
+    #[test]
+    fn ordered_bits_round_trip_and_sort() {
+        let vs = [
+            f32::MIN,
+            -1.0,
+            -f32::MIN_POSITIVE,
+            -f32::from_bits(1),
+            -0.0,
+            0.0,
+            f32::from_bits(1),
+            1.0,
+            f32::MAX,
+        ];
+        for v in vs {
+            assert_eq!(
+                from_ordered(ordered(v)).map(f32::to_bits),
+                Some(v.to_bits())
+            );
+        }
+        assert!(vs.windows(2).all(|w| ordered(w[0]) < ordered(w[1])));
+        assert_eq!(from_ordered(1 << 40), None);
+    }
+
+    /// A bit-pattern step is one f32 spacing at the prediction.
+    #[test]
+    fn a_bits_unit_is_the_spacing_at_the_prediction() {
+        assert_eq!(Quant::Bits.unit(1.0), f32::EPSILON as f64);
+        assert_eq!(Quant::Bits.unit(-1024.0), 1024.0 * f32::EPSILON as f64);
+        assert_eq!(Quant::Bits.unit(0.0), f32::MIN_POSITIVE as f64);
+    }
+
+    /// Predicting rows y0..y1 reads coarse rows j − 1 ..= j + 1 (j + 2
+    /// when upsampling) for j from y0 / 2 to (y1 − 1) / 2, within the level.
+    #[test]
+    fn coarse_rows_are_the_predictors_reach() {
+        let step = Quant::Step { max_error: 1.0 };
+        let up = Quant::Upsampled { max_error: 1.0 };
+        assert_eq!(coarse_rows(10, 4, 8, step), 1..5);
+        assert_eq!(coarse_rows(10, 4, 8, up), 1..6);
+        assert_eq!(coarse_rows(10, 4, 5, step), 1..4);
+        assert_eq!(coarse_rows(10, 0, 20, step), 0..10);
+        assert_eq!(coarse_rows(10, 17, 20, up), 7..10);
+    }
+
+    /// The start of a coarsest-level row is predicted by the sample above
+    /// it, every other sample by its left neighbour, the first by 0.
+    #[test]
+    fn the_top_predictor_reads_left_then_above() {
+        let rec: Vec<f32> = (0..12).map(|i| i as f32 * 10.0).collect();
+        assert_eq!(predict_top(&rec, 4, 0, 0), 0.0);
+        assert_eq!(predict_top(&rec, 4, 3, 1), 60.0);
+        assert_eq!(predict_top(&rec, 4, 0, 2), 40.0);
+        assert_eq!(predict_top(&rec, 4, 0, 1), 0.0);
+    }
+
+    /// The mask model gives no-data the tile's share of 2^24, clamped so
+    /// both symbols stay codable.
+    #[test]
+    fn the_mask_model_is_the_tiles_share() {
+        use constriction::stream::model::EncoderModel;
+        let p1 = |count: u32, n: usize| {
+            let m = mask_model(count, n);
+            let (_, p) = m.left_cumulative_and_probability(1usize).unwrap();
+            p.get()
+        };
+        assert_eq!(p1(4, 16), 1 << 22);
+        assert_eq!(p1(1, 3), (1 << 24) / 3);
+        assert_eq!(p1(0, 16), 1);
+    }
 }
