@@ -553,22 +553,30 @@ fn a_replaced_map_is_not_read() {
 /// latitude, and `info` names the CRS. Before, the cell size came out as
 /// 0.0083 "metres", and the map less than a metre wide. A projected one
 /// keeps its metres (or converts its feet).
-#[test]
-fn geographic_geotiffs_get_metres() {
+/// A 12 × 8 f32 GeoTIFF `name` with a pixel scale, a tie point and, when
+/// given, a GeoKey directory.
+fn geotiff(name: &str, keys: Option<&[u16]>, scale: [f64; 3], tie: [f64; 6]) -> PathBuf {
     use tiff::encoder::{colortype, TiffEncoder};
     use tiff::tags::Tag;
     let (w, h) = (12u32, 8u32);
     let z: Vec<f32> = (0..w * h).map(|i| i as f32).collect();
-    let write = |name: &str, keys: &[u16], scale: [f64; 3], tie: [f64; 6]| {
-        let p = tmp(name);
-        let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
-        let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
-        let e = img.encoder();
-        e.write_tag(Tag::ModelPixelScaleTag, &scale[..]).unwrap();
-        e.write_tag(Tag::ModelTiepointTag, &tie[..]).unwrap();
+    let p = tmp(name);
+    let mut enc = TiffEncoder::new(std::fs::File::create(&p).unwrap()).unwrap();
+    let mut img = enc.new_image::<colortype::Gray32Float>(w, h).unwrap();
+    let e = img.encoder();
+    e.write_tag(Tag::ModelPixelScaleTag, &scale[..]).unwrap();
+    e.write_tag(Tag::ModelTiepointTag, &tie[..]).unwrap();
+    if let Some(keys) = keys {
         e.write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap();
-        img.write_data(&z).unwrap();
-        p
+    }
+    img.write_data(&z).unwrap();
+    p
+}
+
+#[test]
+fn geographic_geotiffs_get_metres() {
+    let write = |name: &str, keys: &[u16], scale: [f64; 3], tie: [f64; 6]| {
+        geotiff(name, Some(keys), scale, tie)
     };
     let info = |p: &Path| -> serde_json::Value {
         let (code, out, err) = cli(&["info", p.to_str().unwrap(), "--json"]);
@@ -637,6 +645,106 @@ fn geographic_geotiffs_get_metres() {
         "nowhere.tif",
         "not on the globe",
     );
+}
+
+/// A GeoTIFF in degrees that names no CRS (what `gdal_translate` writes
+/// from a netCDF grid) reads as 0.004 "m" cells: `info`, `render` and
+/// `pack` warn, naming the file and how to declare the CRS. `--crs
+/// EPSG:4326` (or `terrain.crs` in a scene) converts it as a geographic
+/// GeoTIFF's keys would, and silences the warning. Cells of 30 do not look
+/// like degrees; a file's own CRS is not overruled; a declaration that is
+/// not EPSG:<code> is refused, naming the field.
+#[test]
+fn degrees_without_a_crs_warn_and_a_declared_crs_converts_them() {
+    let arc = 1.0 / 240.0;
+    let tie = [0.0, 0.0, 0.0, 86.5, 28.1, 0.0];
+    let bare = geotiff("bare-degrees.tif", None, [arc, arc, 0.0], tie);
+    let keyed = geotiff(
+        "keyed-degrees.tif",
+        Some(&[1, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326]),
+        [arc, arc, 0.0],
+        tie,
+    );
+    let b = bare.to_str().unwrap();
+    let info = |args: &[&str]| -> (serde_json::Value, String) {
+        let (code, out, err) = cli(&[&["info", "--json"], args].concat());
+        assert_eq!(code, 0, "{err}");
+        (serde_json::from_str(&out).unwrap(), err)
+    };
+    let warned = |err: &str| {
+        err.contains("warning: ")
+            && err.contains("bare-degrees.tif")
+            && err.contains("names no CRS")
+            && err.contains("--crs EPSG:4326")
+    };
+    let (v, err) = info(&[b]);
+    assert!(warned(&err), "{err}");
+    assert_eq!(v["cell_size_m"], serde_json::json!([arc, arc]));
+    assert_eq!(v["crs"], serde_json::Value::Null);
+    let (declared, err) = info(&[b, "--crs", "EPSG:4326"]);
+    assert!(err.is_empty(), "{err}");
+    let (truth, _) = info(&[keyed.to_str().unwrap()]);
+    assert_eq!(declared["cell_size_m"], truth["cell_size_m"]);
+    assert_eq!(declared["crs"], "EPSG:4326");
+    let x = truth["cell_size_m"][0].as_f64().unwrap();
+    assert!((x - 409.5).abs() < 0.1, "{x} m across at 28.08° N");
+    // Metres-like cells with no CRS: no warning.
+    let metres = geotiff("bare-metres.tif", None, [30.0, 30.0, 0.0], tie);
+    let (_, err) = info(&[metres.to_str().unwrap()]);
+    assert!(err.is_empty(), "{err}");
+    // The file's own CRS stands.
+    fails_cleanly(
+        &["info", keyed.to_str().unwrap(), "--crs", "EPSG:32633"],
+        "keyed-degrees.tif",
+        "differs",
+    );
+    // render and pack warn the same way, and --crs silences them.
+    let png = tmp("bare-degrees.png");
+    let p = png.to_str().unwrap();
+    let (code, _, err) = cli(&["render", "--heightmap", b, "-o", p, "--size", "64x48"]);
+    assert!(code == 0 && warned(&err), "{err}");
+    let (code, _, err) = cli(&[
+        "render",
+        "--heightmap",
+        b,
+        "--crs",
+        "EPSG:4326",
+        "-o",
+        p,
+        "--size",
+        "64x48",
+    ]);
+    assert!(code == 0 && !err.contains("warning"), "{err}");
+    let tcz = tmp("bare-degrees.tcz");
+    let t = tcz.to_str().unwrap();
+    let (code, _, err) = cli(&["pack", b, "-o", t]);
+    assert!(code == 0 && warned(&err), "{err}");
+    let (code, _, err) = cli(&["pack", b, "--crs", "EPSG:4326", "-o", t]);
+    assert!(code == 0 && !err.contains("warning"), "{err}");
+    let (packed, _) = info(&[t]);
+    assert_eq!(packed["cell_size_m"], truth["cell_size_m"]);
+    // A scene declares it as terrain.crs.
+    let scene = tmp("bare-degrees.toml");
+    let write_scene = |crs: &str| {
+        std::fs::write(
+            &scene,
+            format!("[terrain]\nfile = \"bare-degrees.tif\"\n{crs}\n"),
+        )
+        .unwrap()
+    };
+    write_scene("crs = \"EPSG:4326\"");
+    let s = scene.to_str().unwrap();
+    let (code, _, err) = cli(&["render", s, "-o", p, "--size", "64x48"]);
+    assert!(code == 0 && !err.contains("warning"), "{err}");
+    let (code, _, err) = cli(&["pack", s, "-o", t]);
+    assert!(code == 0 && !err.contains("warning"), "{err}");
+    let (packed, _) = info(&[t]);
+    assert_eq!(packed["cell_size_m"], truth["cell_size_m"]);
+    write_scene("");
+    let (code, _, err) = cli(&["render", s, "-o", p, "--size", "64x48"]);
+    assert!(code == 0 && warned(&err), "{err}");
+    write_scene("crs = \"4326\"");
+    fails_cleanly(&["render", s, "-o", p], "terrain.crs", "EPSG:<code>");
 }
 
 #[test]

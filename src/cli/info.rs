@@ -11,13 +11,25 @@ pub struct Args {
     /// Print one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// The CRS of a map whose file names none, as EPSG:<code> (a
+    /// geographic one converts its degrees to metres).
+    #[arg(long)]
+    pub crs: Option<String>,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     if file::is_pack_file(&a.heightmap) {
         return pack_info(a);
     }
-    let h = Heightmap::load(&a.heightmap)?;
+    let mut h = Heightmap::load(&a.heightmap)?;
+    match &a.crs {
+        Some(c) => h.declare_crs(&a.heightmap, c)?,
+        None => {
+            if let Some(w) = h.crs_warning(&a.heightmap) {
+                eprintln!("warning: {w}");
+            }
+        }
+    }
     let (min, max) = h.min_max();
     let v = json!({
         "width": h.width(), "height": h.height(), "min": min, "max": max,

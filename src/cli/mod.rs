@@ -49,6 +49,10 @@ pub struct SceneArgs {
     /// Comma-separated effects (empty for none).
     #[arg(long, value_parser = parse_effects)]
     pub effects: Option<EffectList>,
+    /// The CRS of a map whose file names none, as EPSG:<code> (a
+    /// geographic one converts its degrees to metres).
+    #[arg(long)]
+    pub crs: Option<String>,
 }
 
 /// `--effects a,b,c`, empty for none.
@@ -74,6 +78,7 @@ impl SceneArgs {
             size: self.size,
             lod: self.lod,
             effects: self.effects.as_ref().map(|e| e.0.clone()),
+            crs: self.crs.clone(),
         }
     }
 
@@ -98,11 +103,32 @@ impl SceneArgs {
             _ => load_scene(path, embedded)?,
         };
         s.apply(&self.overrides())?;
+        warn_crs(&s.terrain, &s.base_dir);
         if reframe {
             terraclip::scene::frame_terrain(&mut s)?;
             s.fog_from_far();
         }
         Ok(s)
+    }
+}
+
+/// Warns on stderr when a terrain's TIFF names no CRS, none is declared,
+/// and its numbers look like degrees (`terrain::crs`). Only the tags are
+/// read; a file that cannot be read is left to the command's own error.
+pub fn warn_crs(spec: &terraclip::terrain::Spec, base_dir: &std::path::Path) {
+    let Some(f) = spec.file.as_ref().filter(|_| spec.crs.is_none()) else {
+        return;
+    };
+    let path = base_dir.join(f);
+    let tiff = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("tif") || e.eq_ignore_ascii_case("tiff"));
+    if let Some(w) = tiff
+        .then(|| terraclip::terrain::rows::TiffRows::open(&path).ok())
+        .flatten()
+        .and_then(|src| terraclip::terrain::rows::crs_warning(&src, &path))
+    {
+        eprintln!("warning: {w}");
     }
 }
 

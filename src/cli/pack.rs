@@ -37,6 +37,10 @@ pub struct Args {
     /// this bounds the memory a pack of any size takes (default 48).
     #[arg(long, default_value_t = 48.0)]
     pub band_mib: f64,
+    /// The CRS of a map whose file names none, as EPSG:<code> (a
+    /// geographic one converts its degrees to metres).
+    #[arg(long)]
+    pub crs: Option<String>,
     #[arg(long)]
     pub json: bool,
 }
@@ -46,12 +50,26 @@ fn parse_predictor(s: &str) -> Result<Predictor, String> {
 }
 
 /// The input as rows: a scene's terrain, or a heightmap file.
-fn source(input: &std::path::Path) -> anyhow::Result<Box<dyn RowSource>> {
+fn source(input: &std::path::Path, crs: Option<&str>) -> anyhow::Result<Box<dyn RowSource>> {
     if input.extension().is_some_and(|e| e == "toml") {
-        let s = Scene::load(input)?;
+        let mut s = Scene::load(input)?;
+        if let Some(c) = crs {
+            s.terrain.crs = Some(c.to_string());
+            s.validate()?;
+        }
+        super::warn_crs(&s.terrain, &s.base_dir);
         Ok(rows::for_terrain(&s.terrain, &s.base_dir).map_err(|e| s.named(e))?)
     } else {
-        Ok(rows::open(input)?)
+        let src = rows::open(input)?;
+        match crs {
+            Some(c) => Ok(rows::with_crs(src, input, c)?),
+            None => {
+                if let Some(w) = rows::crs_warning(&*src, input) {
+                    eprintln!("warning: {w}");
+                }
+                Ok(src)
+            }
+        }
     }
 }
 
@@ -77,7 +95,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         );
     }
     let t = Instant::now();
-    let src = source(&a.input)?;
+    let src = source(&a.input, a.crs.as_deref())?;
     let [w, h] = src.size();
     let source_name = a.input.display().to_string();
     let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);

@@ -1146,31 +1146,15 @@ mod tests {
     /// and residuals within the upsampled limit.
     #[test]
     fn a_residual_one_off_the_rounded_one_is_taken_when_it_reaches() {
+        let (up, step) = (
+            Quant::Upsampled { max_error: 1e-5 },
+            Quant::Step { max_error: 1e-5 },
+        );
         let cases = [
-            (
-                Quant::Upsampled { max_error: 1e-5 },
-                406.12503f32,
-                117.56102752685547,
-                -1,
-            ),
-            (
-                Quant::Upsampled { max_error: 1e-5 },
-                14.798f32,
-                -235.8000030517578,
-                1,
-            ),
-            (
-                Quant::Step { max_error: 1e-5 },
-                128.0f32,
-                1650.93212890625,
-                -1,
-            ),
-            (
-                Quant::Step { max_error: 1e-5 },
-                64.0f32,
-                391.14801025390625,
-                1,
-            ),
+            (up, 406.12503f32, 117.56102752685547, -1),
+            (up, 14.798, -235.8000030517578, 1),
+            (step, 128.0, 1650.93212890625, -1),
+            (step, 64.0, 391.14801025390625, 1),
         ];
         for (quant, x, p, off) in cases {
             let s = match quant {

@@ -353,6 +353,9 @@ impl Scene {
                 format!("must be finite and within ±{MAX_COORDINATE:e} m"),
             ));
         }
+        if let Some(c) = &self.terrain.crs {
+            crate::terrain::crs::parse(c).map_err(|r| self.bad("terrain.crs", r))?;
+        }
         if let Some(c) = &self.terrain.cell_size {
             let [x, y] = c.pair();
             if !(x.is_finite() && y.is_finite() && x > 0.0 && y > 0.0) {
@@ -545,6 +548,8 @@ pub struct Overrides {
     pub lod: Option<LodScheme>,
     /// `--effects`: the effect list.
     pub effects: Option<Vec<Effect>>,
+    /// `--crs`: the CRS of a map whose file names none (`terrain.crs`).
+    pub crs: Option<String>,
 }
 
 impl Overrides {
@@ -580,6 +585,10 @@ impl Scene {
             self.terrain.file = Some(abs);
             self.terrain.procedural = None;
             self.terrain.cell_size = None;
+            self.terrain.crs = None;
+        }
+        if let Some(c) = &o.crs {
+            self.terrain.crs = Some(c.clone());
         }
         if let Some(p) = o.camera {
             self.camera.position = p;

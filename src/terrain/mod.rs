@@ -9,6 +9,7 @@
 //! assume finite values.
 
 mod asc;
+pub mod crs;
 pub(crate) mod huge;
 mod image_file;
 pub mod procedural;
@@ -47,6 +48,9 @@ pub struct Heightmap {
     /// names none. A geographic grid's cell size is converted from degrees
     /// to metres at the map's centre latitude.
     pub crs: Option<String>,
+    /// Where a GeoTIFF names no CRS, its pixel scale and tie point, which
+    /// a declared CRS converts from ([`crs`]).
+    pub undeclared: Option<crs::Undeclared>,
     /// The lattice the reader decoded every sample from, where it knows
     /// one (a 16-bit PNG and its sidecar, an 8- or 16-bit integer image):
     /// a lossless pack codes the integer codes instead of the f32 bits.
@@ -156,6 +160,7 @@ impl Heightmap {
             cell_size,
             format: format.into(),
             crs: None,
+            undeclared: None,
             lattice: None,
         })
     }
@@ -179,6 +184,31 @@ impl Heightmap {
                 ),
             )),
         }
+    }
+
+    /// Applies a CRS declared for the map read from `path` (see
+    /// [`crs::declare`]); errors name the file.
+    pub fn declare_crs(&mut self, path: &Path, declared: &str) -> Result<()> {
+        let (cell, name) = named(
+            path,
+            crs::declare(
+                declared,
+                self.crs.as_deref(),
+                self.undeclared.as_ref(),
+                self.cell_size,
+            ),
+        )?;
+        self.cell_size = cell;
+        self.crs = Some(name);
+        Ok(())
+    }
+
+    /// The warning for a map read from `path` whose file names no CRS and
+    /// whose numbers look like degrees; none once a CRS is declared.
+    pub fn crs_warning(&self, path: &Path) -> Option<String> {
+        self.undeclared
+            .filter(|u| self.crs.is_none() && u.looks_like_degrees())
+            .map(|u| u.warning(path))
     }
 
     /// Samples across.
@@ -244,7 +274,14 @@ pub(crate) fn named<T>(path: &Path, r: std::result::Result<T, String>) -> Result
 /// applied. Errors name the file, or the field (`terrain.procedural`).
 pub fn load(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Heightmap> {
     let mut h = match (&spec.file, &spec.procedural) {
-        (Some(f), _) => Heightmap::load(&base_dir.join(f))?,
+        (Some(f), _) => {
+            let path = base_dir.join(f);
+            let mut h = Heightmap::load(&path)?;
+            if let Some(c) = &spec.crs {
+                h.declare_crs(&path, c)?;
+            }
+            h
+        }
         (_, Some(p)) => p
             .generate()
             .map_err(|r| Error::value("terrain.procedural", r))?,

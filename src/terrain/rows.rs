@@ -39,13 +39,53 @@ pub trait RowSource: Sync {
     fn lattice(&self) -> Option<Lattice> {
         None
     }
+    /// The CRS the file names, and where it names none, its placement in
+    /// its own units (a GeoTIFF's pixel scale and tie point).
+    fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
+        (None, None)
+    }
+}
+
+/// `src` with the CRS `declared` for the file at `path` applied to its
+/// cell size ([`super::crs::declare`]).
+pub fn with_crs(
+    src: Box<dyn RowSource>,
+    path: &Path,
+    declared: &str,
+) -> Result<Box<dyn RowSource>> {
+    let (file_crs, undeclared) = src.georef();
+    let (cell, _) = crate::terrain::named(
+        path,
+        super::crs::declare(
+            declared,
+            file_crs.as_deref(),
+            undeclared.as_ref(),
+            src.cell_size(),
+        ),
+    )?;
+    Ok(Box::new(WithCell(src, cell)))
+}
+
+/// The warning for a file at `path` read as `src` that names no CRS and
+/// whose numbers look like degrees.
+pub fn crs_warning(src: &dyn RowSource, path: &Path) -> Option<String> {
+    match src.georef() {
+        (None, Some(u)) if u.looks_like_degrees() => Some(u.warning(path)),
+        _ => None,
+    }
 }
 
 /// The source a scene's `[terrain]` table names (its cell size applied).
 pub fn for_terrain(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Box<dyn RowSource>> {
     let cell = spec.cell_size.as_ref().map(|c| c.pair());
     let src: Box<dyn RowSource> = match (&spec.file, &spec.procedural) {
-        (Some(f), _) => open(&base_dir.join(f))?,
+        (Some(f), _) => {
+            let path = base_dir.join(f);
+            match &spec.crs {
+                Some(c) => with_crs(open(&path)?, &path, c)?,
+                None => open(&path)?,
+            }
+        }
         (_, Some(p)) => Box::new(ProceduralRows::new(p.clone())?),
         (None, None) => {
             return Err(Error::value(
@@ -114,6 +154,9 @@ impl RowSource for MapRows {
     }
     fn cell_size(&self) -> [f64; 2] {
         self.0.cell_size
+    }
+    fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
+        (self.0.crs.clone(), self.0.undeclared)
     }
     fn lattice(&self) -> Option<Lattice> {
         self.0.lattice
@@ -212,6 +255,8 @@ pub struct TiffRows {
     width: usize,
     height: usize,
     cell_size: [f64; 2],
+    crs: Option<String>,
+    undeclared: Option<super::crs::Undeclared>,
     nodata: Option<f32>,
     chunk: [usize; 2],
     inner: Mutex<TiffState>,
@@ -240,6 +285,8 @@ impl TiffRows {
             width: tiff.width,
             height: tiff.height,
             cell_size: tiff.cell_size,
+            crs: tiff.crs.clone(),
+            undeclared: tiff.undeclared,
             nodata: tiff.nodata,
             chunk,
             inner: Mutex::new(TiffState { tiff, cached: None }),
@@ -307,5 +354,8 @@ impl RowSource for TiffRows {
     }
     fn cell_size(&self) -> [f64; 2] {
         self.cell_size
+    }
+    fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
+        (self.crs.clone(), self.undeclared)
     }
 }

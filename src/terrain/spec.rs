@@ -27,6 +27,10 @@ pub struct Spec {
     pub procedural: Option<Procedural>,
     /// Overrides the file's cell size (metres).
     pub cell_size: Option<CellSize>,
+    /// The CRS of a map whose file names none, as `EPSG:<code>`: a
+    /// geographic one (4326, 4269, 4258, 4283, 4617) converts its degrees
+    /// to metres (`terrain::crs`).
+    pub crs: Option<String>,
     /// Metres per height unit of the map (default 1).
     #[serde(default = "one")]
     pub vertical_scale: f64,

@@ -22,6 +22,8 @@ pub(super) struct Tiff {
     pub cell_size: [f64; 2],
     pub crs: Option<String>,
     pub nodata: Option<f32>,
+    /// The pixel scale and tie point of a file that names no CRS.
+    pub undeclared: Option<super::crs::Undeclared>,
 }
 
 /// An error of the TIFF decoder, naming the file.
@@ -79,6 +81,15 @@ impl Tiff {
         };
         let (cell, crs) = cell_in_metres(scale, &keys, tiepoint.as_deref(), h)
             .map_err(|r| Error::file(path, r))?;
+        // No CRS named: what a CRS declared later converts from.
+        let undeclared = match (keys.model, scale, tiepoint.as_deref()) {
+            (None, Some(scale), Some(t)) if t.len() >= 6 => Some(super::crs::Undeclared {
+                scale,
+                corner: [t[3] - t[0] * scale[0], t[4] + t[1] * scale[1]],
+                rows: h as usize,
+            }),
+            _ => None,
+        };
         let nodata =
             match dec.find_tag(Tag::GdalNodata) {
                 Ok(Some(v)) => {
@@ -97,6 +108,7 @@ impl Tiff {
             cell_size: cell,
             crs,
             nodata,
+            undeclared,
         })
     }
 }
@@ -128,6 +140,7 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
         Heightmap::from_values(t.width, t.height, values, t.nodata, t.cell_size, format),
     )?;
     map.crs = t.crs;
+    map.undeclared = t.undeclared;
     Ok(map)
 }
 
@@ -229,7 +242,7 @@ fn cell_in_metres(
 /// Metres per degree of longitude and of latitude at latitude `lat`
 /// (degrees), on the WGS 84 ellipsoid: the radius of the parallel and the
 /// meridian's radius of curvature, times π/180.
-fn metres_per_degree(lat: f64) -> [f64; 2] {
+pub(super) fn metres_per_degree(lat: f64) -> [f64; 2] {
     const A: f64 = 6_378_137.0;
     const F: f64 = 1.0 / 298.257_223_563;
     let e2 = F * (2.0 - F);
