@@ -747,6 +747,61 @@ fn degrees_without_a_crs_warn_and_a_declared_crs_converts_them() {
     fails_cleanly(&["render", s, "-o", p], "terrain.crs", "EPSG:<code>");
 }
 
+/// Every GeoTIFF compression GDAL writes for DEMs that the `tiff` crate
+/// decodes (DEFLATE, LZW and PackBits by default, ZSTD by its feature),
+/// with predictors 1, 2 and 3, striped and tiled, and BigTIFF, reads to
+/// the samples of the uncompressed fixture, whole and by rows (what
+/// `pack` streams). LERC, plain and with DEFLATE or ZSTD, is refused with
+/// its name and the `gdal_translate` line that rewrites the file.
+#[test]
+fn every_geotiff_compression_reads_the_same_samples_or_names_itself() {
+    use terraclip::terrain::rows;
+    use terraclip::terrain::Heightmap;
+    let dir = Path::new("tests/data/tiff");
+    let truth = Heightmap::load(&dir.join("none.tif")).unwrap();
+    assert_eq!((truth.width(), truth.height()), (64, 48));
+    let (lo, hi) = truth.min_max();
+    assert!(lo > 260.0 && hi < 773.0 && hi - lo > 500.0, "{lo}..{hi}");
+    let read = [
+        "deflate-p1",
+        "deflate-p2",
+        "deflate-p3",
+        "lzw-p2",
+        "lzw-p3-tiled",
+        "packbits",
+        "zstd-p1",
+        "zstd-p2",
+        "zstd-p3-tiled",
+        "bigtiff-deflate",
+    ];
+    for name in read {
+        let path = dir.join(format!("{name}.tif"));
+        let h = Heightmap::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(h.data(), truth.data(), "{name}");
+        assert_eq!(h.cell_size, [30.0, 30.0], "{name}");
+        assert_eq!(h.crs.as_deref(), Some("EPSG:32614"), "{name}");
+        let src = rows::open(&path).unwrap();
+        assert_eq!(
+            src.read_rows(0, 48).unwrap(),
+            truth.data(),
+            "{name} by rows"
+        );
+        assert_eq!(
+            src.read_rows(17, 33).unwrap(),
+            truth.data()[17 * 64..33 * 64],
+            "{name}"
+        );
+    }
+    for name in ["lerc", "lerc-deflate", "lerc-zstd"] {
+        let path = dir.join(format!("{name}.tif"));
+        fails_cleanly(
+            &["info", path.to_str().unwrap()],
+            &format!("{name}.tif"),
+            "compression LERC (34887) is not read; rewrite the file with `gdal_translate -co COMPRESS=DEFLATE",
+        );
+    }
+}
+
 #[test]
 fn pack_writes_a_pack_info_reads_and_bad_ones_are_clean_errors() {
     let out = tmp("j.tcz");

@@ -26,9 +26,31 @@ pub(super) struct Tiff {
     pub undeclared: Option<super::crs::Undeclared>,
 }
 
-/// An error of the TIFF decoder, naming the file.
+/// An error of the TIFF decoder, naming the file. A compression the
+/// decoder does not read (LERC, which Esri and many elevation COGs use,
+/// is TIFF code 34887) is named, with the GDAL command that rewrites the
+/// file in one it reads.
 pub(super) fn bad(path: &Path) -> impl Fn(tiff::TiffError) -> Error + '_ {
-    move |e| Error::file(path, format!("cannot decode TIFF: {e}"))
+    use tiff::tags::CompressionMethod;
+    use tiff::{TiffError, TiffUnsupportedError};
+    move |e| match e {
+        TiffError::UnsupportedError(TiffUnsupportedError::UnsupportedCompressionMethod(m)) => {
+            let name = match m {
+                CompressionMethod::Unknown(34887) => "LERC (34887)".to_string(),
+                other => format!("{other:?}"),
+            };
+            Error::file(
+                path,
+                format!(
+                    "compression {name} is not read; rewrite the file with \
+                     `gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=3 {} out.tif` \
+                     (PREDICTOR=2 for integer samples)",
+                    path.display()
+                ),
+            )
+        }
+        e => Error::file(path, format!("cannot decode TIFF: {e}")),
+    }
 }
 
 impl Tiff {
