@@ -1246,6 +1246,20 @@ mod tests {
         assert_eq!(predict_top(&rec, 4, 0, 1), 0.0);
     }
 
+    /// In bit-pattern mode a step is an f32 spacing at the prediction, so
+    /// the same activity is a large one near 1 and a small one near 1024:
+    /// each sample's thresholds come from its own prediction.
+    #[test]
+    fn bit_pattern_contexts_scale_with_the_prediction() {
+        let best: [u8; CONTEXTS] = std::array::from_fn(|i| i as u8);
+        let (mut class, mut out) = (vec![], vec![]);
+        let (pred, act) = ([1.0, 1024.0], [1e-5, 1e-5]);
+        models_of(1, &pred, &act, Quant::Bits, &best, &mut class, &mut out);
+        let expect = pred.map(|p| context(1, 1e-5, &thresholds(Quant::Bits.unit(p))) as u8);
+        assert_eq!(out, expect);
+        assert!(out[0] > out[1], "{out:?}");
+    }
+
     /// The mask model gives no-data the tile's share of 2^24, clamped so
     /// both symbols stay codable.
     #[test]
