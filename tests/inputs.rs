@@ -1,6 +1,9 @@
 //! Readers and the CLI on good and bad input: every bad input is a clean
 //! error naming the file and the reason, with a non-zero exit and no panic.
 
+mod common;
+
+use common::cli;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use terraclip::terrain::Heightmap;
@@ -11,18 +14,6 @@ fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("terraclip-inputs-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d.join(name)
-}
-
-fn cli(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_terraclip"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into(),
-        String::from_utf8_lossy(&out.stderr).into(),
-    )
 }
 
 /// Asserts a clean failure whose message names `needle` and says

@@ -15,13 +15,17 @@ pub struct Args {
     /// geographic one converts its degrees to metres).
     #[arg(long)]
     pub crs: Option<String>,
+    /// The variable of a netCDF file that holds the map, where its CF
+    /// standard_names do not single one out.
+    #[arg(long)]
+    pub variable: Option<String>,
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
     if file::is_pack_file(&a.heightmap) {
         return pack_info(a);
     }
-    let mut h = Heightmap::load(&a.heightmap)?;
+    let mut h = Heightmap::load_var(&a.heightmap, a.variable.as_deref())?;
     match &a.crs {
         Some(c) => h.declare_crs(&a.heightmap, c)?,
         None => {

@@ -53,6 +53,10 @@ pub struct SceneArgs {
     /// geographic one converts its degrees to metres).
     #[arg(long)]
     pub crs: Option<String>,
+    /// The variable of a netCDF file that holds the map, where its CF
+    /// standard_names do not single one out.
+    #[arg(long)]
+    pub variable: Option<String>,
 }
 
 /// `--effects a,b,c`, empty for none.
@@ -79,6 +83,7 @@ impl SceneArgs {
             lod: self.lod,
             effects: self.effects.as_ref().map(|e| e.0.clone()),
             crs: self.crs.clone(),
+            variable: self.variable.clone(),
         }
     }
 
@@ -112,21 +117,24 @@ impl SceneArgs {
     }
 }
 
-/// Warns on stderr when a terrain's TIFF names no CRS, none is declared,
-/// and its numbers look like degrees (`terrain::crs`). Only the tags are
-/// read; a file that cannot be read is left to the command's own error.
+/// Warns on stderr when a terrain's TIFF or netCDF grid names no CRS, none
+/// is declared, and its numbers look like degrees (`terrain::crs`). Only
+/// the tags or the header and coordinates are read; a file that cannot be
+/// read is left to the command's own error.
 pub fn warn_crs(spec: &terraclip::terrain::Spec, base_dir: &std::path::Path) {
     let Some(f) = spec.file.as_ref().filter(|_| spec.crs.is_none()) else {
         return;
     };
     let path = base_dir.join(f);
-    let tiff = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("tif") || e.eq_ignore_ascii_case("tiff"));
-    if let Some(w) = tiff
-        .then(|| terraclip::terrain::rows::TiffRows::open(&path).ok())
+    let georeferenced = path.extension().is_some_and(|e| {
+        ["tif", "tiff", "nc", "cdf"]
+            .iter()
+            .any(|x| e.eq_ignore_ascii_case(x))
+    });
+    if let Some(w) = georeferenced
+        .then(|| terraclip::terrain::rows::open_var(&path, spec.variable.as_deref()).ok())
         .flatten()
-        .and_then(|src| terraclip::terrain::rows::crs_warning(&src, &path))
+        .and_then(|src| terraclip::terrain::rows::crs_warning(&*src, &path))
     {
         eprintln!("warning: {w}");
     }

@@ -41,6 +41,10 @@ pub struct Args {
     /// geographic one converts its degrees to metres).
     #[arg(long)]
     pub crs: Option<String>,
+    /// The variable of a netCDF file that holds the map, where its CF
+    /// standard_names do not single one out.
+    #[arg(long)]
+    pub variable: Option<String>,
     #[arg(long)]
     pub json: bool,
 }
@@ -50,17 +54,24 @@ fn parse_predictor(s: &str) -> Result<Predictor, String> {
 }
 
 /// The input as rows: a scene's terrain, or a heightmap file.
-fn source(input: &std::path::Path, crs: Option<&str>) -> anyhow::Result<Box<dyn RowSource>> {
+fn source(
+    input: &std::path::Path,
+    crs: Option<&str>,
+    variable: Option<&str>,
+) -> anyhow::Result<Box<dyn RowSource>> {
     if input.extension().is_some_and(|e| e == "toml") {
         let mut s = Scene::load(input)?;
         if let Some(c) = crs {
             s.terrain.crs = Some(c.to_string());
             s.validate()?;
         }
+        if let Some(v) = variable {
+            s.terrain.variable = Some(v.to_string());
+        }
         super::warn_crs(&s.terrain, &s.base_dir);
         Ok(rows::for_terrain(&s.terrain, &s.base_dir).map_err(|e| s.named(e))?)
     } else {
-        let src = rows::open(input)?;
+        let src = rows::open_var(input, variable)?;
         match crs {
             Some(c) => Ok(rows::with_crs(src, input, c)?),
             None => {
@@ -95,7 +106,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         );
     }
     let t = Instant::now();
-    let src = source(&a.input, a.crs.as_deref())?;
+    let src = source(&a.input, a.crs.as_deref(), a.variable.as_deref())?;
     let [w, h] = src.size();
     let source_name = a.input.display().to_string();
     let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);

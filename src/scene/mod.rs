@@ -550,6 +550,9 @@ pub struct Overrides {
     pub effects: Option<Vec<Effect>>,
     /// `--crs`: the CRS of a map whose file names none (`terrain.crs`).
     pub crs: Option<String>,
+    /// `--variable`: the netCDF variable that holds the map
+    /// (`terrain.variable`).
+    pub variable: Option<String>,
 }
 
 impl Overrides {
@@ -586,9 +589,13 @@ impl Scene {
             self.terrain.procedural = None;
             self.terrain.cell_size = None;
             self.terrain.crs = None;
+            self.terrain.variable = None;
         }
         if let Some(c) = &o.crs {
             self.terrain.crs = Some(c.clone());
+        }
+        if let Some(v) = &o.variable {
+            self.terrain.variable = Some(v.clone());
         }
         if let Some(p) = o.camera {
             self.camera.position = p;

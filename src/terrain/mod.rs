@@ -12,6 +12,7 @@ mod asc;
 pub mod crs;
 pub(crate) mod huge;
 mod image_file;
+pub mod netcdf;
 pub mod procedural;
 mod raw;
 pub mod rows;
@@ -55,6 +56,11 @@ pub struct Heightmap {
     /// one (a 16-bit PNG and its sidecar, an 8- or 16-bit integer image):
     /// a lossless pack codes the integer codes instead of the f32 bits.
     pub lattice: Option<Lattice>,
+}
+
+/// Whether a lower-case file extension is netCDF's.
+pub(crate) fn is_netcdf(ext: &str) -> bool {
+    matches!(ext, "nc" | "cdf")
 }
 
 /// Checks a width × height against [`MAX_SIDE`] and [`MAX_TEXELS`].
@@ -168,11 +174,25 @@ impl Heightmap {
     /// Reads a heightmap, choosing the reader by file extension: `.png`,
     /// `.tga`, `.tif`/`.tiff`, `.asc`, `.f32`/`.raw`/`.bin` (with a JSON sidecar).
     pub fn load(path: &Path) -> Result<Self> {
+        Self::load_var(path, None)
+    }
+
+    /// [`Heightmap::load`], with the variable of a netCDF file named
+    /// (`terrain.variable`, `--variable`); other formats hold one map and
+    /// refuse a name.
+    pub fn load_var(path: &Path, variable: Option<&str>) -> Result<Self> {
         let ext = path
             .extension()
             .map(|e| e.to_string_lossy().to_ascii_lowercase())
             .unwrap_or_default();
+        if let (Some(v), false) = (variable, is_netcdf(&ext)) {
+            return Err(Error::file(
+                path,
+                format!("variable '{v}' is given, but only netCDF files (.nc) hold several"),
+            ));
+        }
         match ext.as_str() {
+            "nc" | "cdf" => netcdf::read(path, variable),
             "png" | "tga" => image_file::read(path),
             "tif" | "tiff" => tiff_file::read(path),
             "asc" => asc::read(path),
@@ -180,7 +200,7 @@ impl Heightmap {
             _ => Err(Error::file(
                 path,
                 format!(
-                    "unknown heightmap extension '{ext}' (expected png, tga, tif, tiff, asc, f32, raw or bin)"
+                    "unknown heightmap extension '{ext}' (expected png, tga, tif, tiff, asc, nc, f32, raw or bin)"
                 ),
             )),
         }
@@ -276,7 +296,7 @@ pub fn load(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Heightmap> {
     let mut h = match (&spec.file, &spec.procedural) {
         (Some(f), _) => {
             let path = base_dir.join(f);
-            let mut h = Heightmap::load(&path)?;
+            let mut h = Heightmap::load_var(&path, spec.variable.as_deref())?;
             if let Some(c) = &spec.crs {
                 h.declare_crs(&path, c)?;
             }

@@ -82,8 +82,8 @@ pub fn for_terrain(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Box<d
         (Some(f), _) => {
             let path = base_dir.join(f);
             match &spec.crs {
-                Some(c) => with_crs(open(&path)?, &path, c)?,
-                None => open(&path)?,
+                Some(c) => with_crs(open_var(&path, spec.variable.as_deref())?, &path, c)?,
+                None => open_var(&path, spec.variable.as_deref())?,
             }
         }
         (_, Some(p)) => Box::new(ProceduralRows::new(p.clone())?),
@@ -101,12 +101,23 @@ pub fn for_terrain(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Box<d
 }
 
 /// The source for a heightmap file: read by rows where its format allows
-/// (raw f32, TIFF), else loaded whole.
+/// (raw f32, TIFF, netCDF), else loaded whole.
 pub fn open(path: &Path) -> Result<Box<dyn RowSource>> {
+    open_var(path, None)
+}
+
+/// [`open`], with the variable of a netCDF file named.
+pub fn open_var(path: &Path, variable: Option<&str>) -> Result<Box<dyn RowSource>> {
     let ext = path
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
+    if super::is_netcdf(&ext) {
+        return super::netcdf::rows(path, variable);
+    }
+    if variable.is_some() {
+        return Ok(Box::new(MapRows(Heightmap::load_var(path, variable)?)));
+    }
     Ok(match ext.as_str() {
         "f32" | "raw" | "bin" => Box::new(RawRows::open(path)?),
         "tif" | "tiff" => Box::new(TiffRows::open(path)?),

@@ -31,6 +31,9 @@ pub struct Spec {
     /// geographic one (4326, 4269, 4258, 4283, 4617) converts its degrees
     /// to metres (`terrain::crs`).
     pub crs: Option<String>,
+    /// The variable of a netCDF file that holds the map, where its CF
+    /// `standard_name`s do not single one out (`terrain::netcdf`).
+    pub variable: Option<String>,
     /// Metres per height unit of the map (default 1).
     #[serde(default = "one")]
     pub vertical_scale: f64,
