@@ -783,13 +783,50 @@ fn every_geotiff_compression_reads_the_same_samples_or_names_itself() {
             "{name}"
         );
     }
-    for name in ["lerc", "lerc-deflate", "lerc-zstd"] {
+    // LERC with the feature `lerc` (Esri's library); without it, refused
+    // with the line that rewrites the file.
+    let v0 = truth.get(5, 5);
+    for name in [
+        "lerc",
+        "lerc-deflate",
+        "lerc-zstd",
+        "lerc-zstd-tiled-nodata",
+    ] {
         let path = dir.join(format!("{name}.tif"));
-        fails_cleanly(
-            &["info", path.to_str().unwrap()],
-            &format!("{name}.tif"),
-            "compression LERC (34887) is not read; rewrite the file with `gdal_translate -co COMPRESS=DEFLATE",
-        );
+        if !cfg!(feature = "lerc") {
+            fails_cleanly(
+                &["info", path.to_str().unwrap()],
+                &format!("{name}.tif"),
+                "compression LERC (34887) is not read by this build (one with `--features lerc` \
+                 reads it, given libclang-dev to build); rewrite the file with `gdal_translate -co \
+                 COMPRESS=DEFLATE",
+            );
+            continue;
+        }
+        let h = Heightmap::load(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(h.format, "tiff-lerc");
+        // The tiled one (48 × 32 tiles, so its edge tiles are padded)
+        // declares one height as no-data: the LERC mask GDAL wrote.
+        let masked = name.ends_with("nodata");
+        let want: Vec<f32> = truth
+            .data()
+            .iter()
+            .map(|&v| if masked && v == v0 { f32::NAN } else { v })
+            .collect();
+        let nodata = want.iter().filter(|v| v.is_nan()).count();
+        assert_eq!(h.nodata_count(), nodata, "{name}");
+        assert_eq!(nodata > 0, masked, "{name}");
+        let by_rows = rows::open(&path).unwrap().read_rows(0, 48).unwrap();
+        for (i, (a, b)) in by_rows.iter().zip(&want).enumerate() {
+            assert!(
+                a == b || (a.is_nan() && b.is_nan()),
+                "{name} sample {i}: {a} against {b}"
+            );
+            assert_eq!(h.nodata_mask()[i], b.is_nan(), "{name} sample {i}");
+            if !b.is_nan() {
+                assert_eq!(h.data()[i], *b, "{name} sample {i}");
+            }
+        }
     }
 }
 
@@ -923,4 +960,63 @@ fn synthesis_measures_and_bad_options_are_clean_errors() {
         "flat.asc",
         "no detail",
     );
+}
+
+/// LERC files damaged byte by byte (truncated, bits flipped, sizes made
+/// extreme): each loads or fails naming the file, and no damage reaches
+/// Esri's decoder as a crash. The split is asserted exactly.
+#[cfg(feature = "lerc")]
+#[test]
+fn damaged_lerc_files_load_or_name_the_file() {
+    use common::fuzz::{mutate, Rng};
+    let mut rng = Rng(0x4C45_5243_2026_1205);
+    let path = tmp("case-lerc.tif");
+    // Loaded, refused by the LERC chunk reader, refused before it.
+    let (mut loaded, mut chunk, mut refused) = (0, 0, 0);
+    for (k, seed) in ["lerc", "lerc-deflate", "lerc-zstd-tiled-nodata"]
+        .iter()
+        .map(|n| std::fs::read(format!("tests/data/tiff/{n}.tif")).unwrap())
+        .enumerate()
+    {
+        for case in 0..300 {
+            std::fs::write(&path, mutate(&mut rng, &seed)).unwrap();
+            match Heightmap::load(&path) {
+                Ok(h) => {
+                    assert!(h.data().iter().all(|v| v.is_finite()));
+                    loaded += 1;
+                }
+                Err(e) => {
+                    let msg = e.to_string();
+                    assert!(msg.contains("case-lerc.tif"), "seed {k} case {case}: {msg}");
+                    if msg.contains("LERC chunk") {
+                        chunk += 1;
+                    } else {
+                        refused += 1;
+                    }
+                }
+            }
+        }
+    }
+    // A strip whose byte count claims 4 GiB: refused before a byte is
+    // allocated for it. (Little-endian TIFF: the first IFD's entries are
+    // 12 bytes each; StripByteCounts, tag 279, holds 2 LONGs at an offset.)
+    let mut forged = std::fs::read("tests/data/tiff/lerc.tif").unwrap();
+    let u16_at = |b: &[u8], i: usize| u16::from_le_bytes([b[i], b[i + 1]]) as usize;
+    let u32_at = |b: &[u8], i: usize| u32::from_le_bytes(b[i..i + 4].try_into().unwrap()) as usize;
+    let ifd = u32_at(&forged, 4);
+    let entry = (0..u16_at(&forged, ifd))
+        .map(|e| ifd + 2 + 12 * e)
+        .find(|&e| u16_at(&forged, e) == 279)
+        .expect("StripByteCounts");
+    assert_eq!(u32_at(&forged, entry + 4), 2, "two strips");
+    let counts = u32_at(&forged, entry + 8);
+    forged[counts..counts + 4].copy_from_slice(&0xFFFF_FFF0u32.to_le_bytes());
+    std::fs::write(&path, &forged).unwrap();
+    let e = Heightmap::load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("case-lerc.tif") && e.contains("LERC chunk 0: 4294967280 bytes at offset"),
+        "{e}"
+    );
+    eprintln!("LERC fuzz: {loaded} loaded, {chunk} refused by a chunk, {refused} before");
+    assert_eq!((loaded, chunk, refused), (73, 614, 213));
 }

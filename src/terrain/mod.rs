@@ -12,6 +12,8 @@ mod asc;
 pub mod crs;
 pub(crate) mod huge;
 mod image_file;
+#[cfg(feature = "lerc")]
+mod lerc_tiff;
 pub mod netcdf;
 pub mod procedural;
 mod raw;

@@ -15,8 +15,8 @@
 
 use super::procedural::Procedural;
 use super::raw::Raw;
-use super::tiff_file::{self, Tiff};
-use super::{check_side, named, Heightmap, Lattice};
+use super::tiff_file::Tiff;
+use super::{check_side, Heightmap, Lattice};
 use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -312,12 +312,7 @@ impl TiffRows {
         let mut out = vec![0f32; rows * self.width];
         for c in 0..across {
             let index = (r * across + c) as u32;
-            let img = st
-                .tiff
-                .dec
-                .read_chunk(index)
-                .map_err(tiff_file::bad(&self.path))?;
-            let (v, _) = named(&self.path, tiff_file::to_f32(img))?;
+            let (v, _) = st.tiff.chunk(index, &self.path)?;
             let w = cw.min(self.width - c * cw);
             if v.len() < w * rows {
                 return Err(Error::file(

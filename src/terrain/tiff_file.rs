@@ -24,25 +24,32 @@ pub(super) struct Tiff {
     pub nodata: Option<f32>,
     /// The pixel scale and tie point of a file that names no CRS.
     pub undeclared: Option<super::crs::Undeclared>,
+    /// A LERC file's chunk table (feature `lerc`).
+    #[cfg(feature = "lerc")]
+    lerc: Option<super::lerc_tiff::LercChunks>,
 }
 
 /// An error of the TIFF decoder, naming the file. A compression the
 /// decoder does not read (LERC, which Esri and many elevation COGs use,
-/// is TIFF code 34887) is named, with the GDAL command that rewrites the
-/// file in one it reads.
+/// is TIFF code 34887, read only with the feature `lerc`) is named, with
+/// the GDAL command that rewrites the file in one it reads.
 pub(super) fn bad(path: &Path) -> impl Fn(tiff::TiffError) -> Error + '_ {
     use tiff::tags::CompressionMethod;
     use tiff::{TiffError, TiffUnsupportedError};
     move |e| match e {
         TiffError::UnsupportedError(TiffUnsupportedError::UnsupportedCompressionMethod(m)) => {
-            let name = match m {
-                CompressionMethod::Unknown(34887) => "LERC (34887)".to_string(),
-                other => format!("{other:?}"),
+            let (name, build) = match m {
+                CompressionMethod::Unknown(34887) => (
+                    "LERC (34887)".to_string(),
+                    " by this build (one with `--features lerc` reads it, given \
+                     libclang-dev to build)",
+                ),
+                other => (format!("{other:?}"), ""),
             };
             Error::file(
                 path,
                 format!(
-                    "compression {name} is not read; rewrite the file with \
+                    "compression {name} is not read{build}; rewrite the file with \
                      `gdal_translate -co COMPRESS=DEFLATE -co PREDICTOR=3 {} out.tif` \
                      (PREDICTOR=2 for integer samples)",
                     path.display()
@@ -123,6 +130,8 @@ impl Tiff {
                 }
                 _ => None,
             };
+        #[cfg(feature = "lerc")]
+        let lerc = super::lerc_tiff::LercChunks::open(&mut dec, path)?;
         Ok(Tiff {
             dec,
             width: w as usize,
@@ -131,7 +140,45 @@ impl Tiff {
             crs,
             nodata,
             undeclared,
+            #[cfg(feature = "lerc")]
+            lerc,
         })
+    }
+
+    /// Chunk `index` (a strip or tile, its data width × height) as f32,
+    /// with the format's short name.
+    pub fn chunk(&mut self, index: u32, path: &Path) -> Result<(Vec<f32>, &'static str)> {
+        #[cfg(feature = "lerc")]
+        if let Some(l) = &self.lerc {
+            let size = [self.width, self.height];
+            return Ok((l.read(&mut self.dec, size, index, path)?, "tiff-lerc"));
+        }
+        let img = self.dec.read_chunk(index).map_err(bad(path))?;
+        named(path, to_f32(img))
+    }
+
+    /// The whole image as f32, with the format's short name: a LERC file
+    /// chunk by chunk, any other by the decoder.
+    fn image(&mut self, path: &Path) -> Result<(Vec<f32>, &'static str)> {
+        #[cfg(feature = "lerc")]
+        if self.lerc.is_some() {
+            let (cw, ch) = self.dec.chunk_dimensions();
+            let (cw, ch) = (cw as usize, ch as usize);
+            let across = self.width.div_ceil(cw);
+            let mut out = vec![0f32; self.width * self.height];
+            for r in 0..self.height.div_ceil(ch) {
+                for c in 0..across {
+                    let (v, _) = self.chunk((r * across + c) as u32, path)?;
+                    let w = cw.min(self.width - c * cw);
+                    for (y, row) in v.chunks_exact(w).enumerate() {
+                        out[(r * ch + y) * self.width + c * cw..][..w].copy_from_slice(row);
+                    }
+                }
+            }
+            return Ok((out, "tiff-lerc"));
+        }
+        let img = self.dec.read_image().map_err(bad(path))?;
+        named(path, to_f32(img))
     }
 }
 
@@ -155,8 +202,7 @@ pub(super) fn to_f32(img: DecodingResult) -> std::result::Result<(Vec<f32>, &'st
 
 pub(super) fn read(path: &Path) -> Result<Heightmap> {
     let mut t = Tiff::open(path, check_dimensions)?;
-    let img = t.dec.read_image().map_err(bad(path))?;
-    let (values, format) = named(path, to_f32(img))?;
+    let (values, format) = t.image(path)?;
     let mut map = named(
         path,
         Heightmap::from_values(t.width, t.height, values, t.nodata, t.cell_size, format),
