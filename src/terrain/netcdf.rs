@@ -194,6 +194,8 @@ impl Var {
 
 /// The header: dimensions, variables and the record count.
 struct Header {
+    /// Read through libnetcdf (netCDF-4): there are no offsets.
+    library: bool,
     version: u8,
     numrecs: u64,
     dims: Vec<Dim>,
@@ -324,11 +326,15 @@ fn header(file: &std::fs::File, len: u64, path: &Path) -> std::result::Result<He
             ))
         }
         [0x89, b'H', b'D', b'F'] => {
+            #[cfg(feature = "netcdf4")]
+            return hdf::header(path);
+            #[cfg(not(feature = "netcdf4"))]
             return Err(format!(
-                "magic: a netCDF-4 (HDF5) file, which is not read; rewrite it in the classic \
+                "magic: a netCDF-4 (HDF5) file, which this build does not read (one with \
+                 `--features netcdf4` does, given libnetcdf-dev); rewrite it in the classic \
                  format with `nccopy -k classic {} out.nc` (`-k cdf5` past 4 GiB a variable)",
                 path.display()
-            ))
+            ));
         }
         _ => return Err("magic: not a netCDF file (no 'CDF' signature)".into()),
     };
@@ -375,6 +381,7 @@ fn header(file: &std::fs::File, len: u64, path: &Path) -> std::result::Result<He
         });
     }
     Ok(Header {
+        library: false,
         version,
         numrecs,
         dims,
@@ -404,6 +411,11 @@ pub(super) struct Grid {
     pub format: String,
     ty: NcType,
     begin: u64,
+    /// Read through libnetcdf (a netCDF-4 file), not from `begin`.
+    library: bool,
+    /// The variable's leading dimensions (each of length 1).
+    #[cfg_attr(not(feature = "netcdf4"), allow(dead_code))]
+    leading: usize,
     /// The file's samples are (x, y), not (y, x): the first grid dimension
     /// is longitude.
     transposed: bool,
@@ -587,7 +599,7 @@ fn choose(
         .checked_mul(height)
         .and_then(|n| n.checked_mul(v.ty.size()))
         .ok_or_else(|| format!("{field}: {width}×{height} samples overflow"))?;
-    if v.begin > file_len || bytes > file_len - v.begin {
+    if !h.library && (v.begin > file_len || bytes > file_len - v.begin) {
         return Err(format!(
             "{field}: its {bytes} bytes of data at offset {} (its 'begin') run past the \
              file's {file_len} bytes",
@@ -597,7 +609,23 @@ fn choose(
     let axis = |c: Option<&Var>, n: u64| -> std::result::Result<Option<Axis>, String> {
         let Some(c) = c else { return Ok(None) };
         let what = format!("coordinate variable '{}'", c.name);
-        let vals = read_values(file, file_len, c, n).map_err(|r| format!("{what}: {r}"))?;
+        let vals = if h.library {
+            #[cfg(feature = "netcdf4")]
+            {
+                hdf::coordinates(path, &c.name, n)
+            }
+            #[cfg(not(feature = "netcdf4"))]
+            unreachable!("a library header needs the feature netcdf4")
+        } else {
+            read_values(file, file_len, c, n)
+        }
+        .map_err(|r| format!("{what}: {r}"))?;
+        if vals.len() as u64 != n || n < 2 {
+            return Err(format!(
+                "{what}: {} values for a dimension of {n}",
+                vals.len()
+            ));
+        }
         let step = (vals[vals.len() - 1] - vals[0]) / (vals.len() - 1) as f64;
         if !(step.is_finite() && step != 0.0) {
             return Err(format!("{what}: its first and last values give no spacing"));
@@ -705,6 +733,8 @@ fn choose(
         format: format!("netcdf{}-{}", h.version, v.ty.short_name()),
         ty: v.ty,
         begin: v.begin,
+        library: h.library,
+        leading: v.dims.len() - 2,
         transposed,
         flip_y,
         flip_x,
@@ -778,52 +808,58 @@ impl Grid {
         }
     }
 
-    /// Heights of map rows `[y0, y1)` (north first, west first), NaN where
-    /// there is no data. A transposed grid reads the whole variable.
-    pub fn read_rows(&self, file: &std::fs::File, y0: usize, y1: usize) -> Result<Vec<f32>> {
+    /// The raw values of file rows `[f0, f1)` of the grid (of every row
+    /// and column, in file order, for a transposed grid), as f64.
+    fn file_block(&self, file: &std::fs::File, f0: usize, f1: usize) -> Result<Vec<f64>> {
         let (w, h) = (self.width, self.height);
-        let size = self.ty.size() as usize;
-        let bad = |e: std::io::Error| {
+        let bad = |e: String| {
             Error::file(
                 &self.path,
                 format!("variable '{}': reading its data: {e}", self.variable),
             )
         };
-        let mut f = file;
-        if self.transposed {
-            // File order (x, y): map row y is the file's column y.
-            let mut b = vec![0u8; w * h * size];
-            f.seek(SeekFrom::Start(self.begin))
-                .and_then(|_| f.read_exact(&mut b))
-                .map_err(bad)?;
-            let mut out = Vec::with_capacity((y1 - y0) * w);
-            for y in y0..y1 {
-                let fy = if self.flip_y { h - 1 - y } else { y };
-                for x in 0..w {
-                    let fx = if self.flip_x { w - 1 - x } else { x };
-                    let i = (fx * h + fy) * size;
-                    out.push(self.height_of(self.ty.value(&b[i..i + size])));
-                }
-            }
-            return Ok(out);
-        }
-        // The file rows holding map rows [y0, y1): contiguous either way.
-        let (f0, f1) = if self.flip_y {
-            (h - y1, h - y0)
+        let (first, n) = if self.transposed {
+            (0, w * h)
         } else {
-            (y0, y1)
+            (f0 * w, (f1 - f0) * w)
         };
-        let mut b = vec![0u8; (f1 - f0) * w * size];
-        f.seek(SeekFrom::Start(self.begin + (f0 * w * size) as u64))
+        if self.library {
+            #[cfg(feature = "netcdf4")]
+            return hdf::block(self, first, n).map_err(bad);
+        }
+        let size = self.ty.size() as usize;
+        let mut b = vec![0u8; n * size];
+        let mut f = file;
+        f.seek(SeekFrom::Start(self.begin + (first * size) as u64))
             .and_then(|_| f.read_exact(&mut b))
-            .map_err(bad)?;
+            .map_err(|e| bad(e.to_string()))?;
+        Ok(b.chunks_exact(size).map(|c| self.ty.value(c)).collect())
+    }
+
+    /// Heights of map rows `[y0, y1)` (north first, west first), NaN where
+    /// there is no data. A transposed grid reads the whole variable.
+    pub fn read_rows(&self, file: &std::fs::File, y0: usize, y1: usize) -> Result<Vec<f32>> {
+        let (w, h) = (self.width, self.height);
+        // The file rows holding map rows [y0, y1): contiguous either way.
+        let (f0, f1) = match (self.transposed, self.flip_y) {
+            (true, _) => (0, h),
+            (false, true) => (h - y1, h - y0),
+            (false, false) => (y0, y1),
+        };
+        let raw = self.file_block(file, f0, f1)?;
         let mut out = Vec::with_capacity((y1 - y0) * w);
         for y in y0..y1 {
             let fy = if self.flip_y { h - 1 - y } else { y } - f0;
-            let row = &b[fy * w * size..][..w * size];
             for x in 0..w {
                 let fx = if self.flip_x { w - 1 - x } else { x };
-                out.push(self.height_of(self.ty.value(&row[fx * size..][..size])));
+                // File order (x, y) when transposed: map row y is the
+                // file's column y.
+                let i = if self.transposed {
+                    fx * h + fy
+                } else {
+                    fy * w + fx
+                };
+                out.push(self.height_of(raw[i]));
             }
         }
         Ok(out)
@@ -879,5 +915,133 @@ impl super::rows::RowSource for NetcdfRows {
     }
     fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
         (self.grid.crs.clone(), self.grid.undeclared)
+    }
+}
+
+/// netCDF-4 (HDF5) files through libnetcdf and the `netcdf` crate, with
+/// the feature `netcdf4`: the header is read into the same lists the
+/// classic reader makes, so the variable, axes and values follow the same
+/// rules; samples come through the library, converted to f64 by it. Not a
+/// default: the crate links the system's libnetcdf (`apt install
+/// libnetcdf-dev`), where a fresh clone needs nothing. The HDF5 parsing is
+/// the library's, not checked here.
+#[cfg(feature = "netcdf4")]
+mod hdf {
+    use super::*;
+    use netcdf::types::{FloatType, IntType, NcVariableType};
+    use netcdf::AttributeValue as A;
+
+    fn value(a: A) -> Value {
+        let n = |v: Vec<f64>| Value::Numbers(v);
+        match a {
+            A::Uchar(x) => n(vec![x as f64]),
+            A::Uchars(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Schar(x) => n(vec![x as f64]),
+            A::Schars(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Ushort(x) => n(vec![x as f64]),
+            A::Ushorts(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Short(x) => n(vec![x as f64]),
+            A::Shorts(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Uint(x) => n(vec![x as f64]),
+            A::Uints(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Int(x) => n(vec![x as f64]),
+            A::Ints(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Ulonglong(x) => n(vec![x as f64]),
+            A::Ulonglongs(x) => n(x.into_iter().map(|v| v as f64).collect()),
+            A::Longlong(x) => n(vec![x as f64]),
+            A::Longlongs(x) => n(x.into_iter().map(|v| v as f64).collect()),
+            A::Float(x) => n(vec![x as f64]),
+            A::Floats(x) => n(x.into_iter().map(f64::from).collect()),
+            A::Double(x) => n(vec![x]),
+            A::Doubles(x) => n(x),
+            A::Str(s) => Value::Text(s),
+            A::Strs(s) => Value::Text(s.join("")),
+        }
+    }
+
+    fn ty(t: NcVariableType) -> NcType {
+        match t {
+            NcVariableType::Int(IntType::I8) => NcType::Byte,
+            NcVariableType::Int(IntType::U8) => NcType::UByte,
+            NcVariableType::Int(IntType::I16) => NcType::Short,
+            NcVariableType::Int(IntType::U16) => NcType::UShort,
+            NcVariableType::Int(IntType::I32) => NcType::Int,
+            NcVariableType::Int(IntType::U32) => NcType::UInt,
+            NcVariableType::Int(IntType::I64) => NcType::Int64,
+            NcVariableType::Int(IntType::U64) => NcType::UInt64,
+            NcVariableType::Float(FloatType::F32) => NcType::Float,
+            NcVariableType::Float(FloatType::F64) => NcType::Double,
+            // Strings, compounds and the rest are no map.
+            _ => NcType::Char,
+        }
+    }
+
+    /// The header of a netCDF-4 file, as the classic reader's lists
+    /// (version 4 names the format in `format`).
+    pub(super) fn header(path: &Path) -> std::result::Result<Header, String> {
+        let f = netcdf::open(path).map_err(|e| format!("netCDF-4: {e}"))?;
+        let mut dims: Vec<Dim> = vec![];
+        let mut vars = vec![];
+        for v in f.variables() {
+            let mut ids = vec![];
+            for d in v.dimensions() {
+                let name = d.name();
+                let id = match dims.iter().position(|x| x.name == name) {
+                    Some(i) => i,
+                    None => {
+                        dims.push(Dim {
+                            name,
+                            len: d.len() as u64,
+                        });
+                        dims.len() - 1
+                    }
+                };
+                ids.push(id);
+            }
+            let attrs = v
+                .attributes()
+                .filter_map(|a| Some((a.name().to_string(), value(a.value().ok()?))))
+                .collect();
+            vars.push(Var {
+                name: v.name(),
+                dims: ids,
+                attrs,
+                ty: ty(v.vartype()),
+                begin: 0,
+            });
+        }
+        Ok(Header {
+            library: true,
+            version: 4,
+            numrecs: 1,
+            dims,
+            vars,
+        })
+    }
+
+    /// The `n` values of the coordinate variable `name`.
+    pub(super) fn coordinates(
+        path: &Path,
+        name: &str,
+        n: u64,
+    ) -> std::result::Result<Vec<f64>, String> {
+        let f = netcdf::open(path).map_err(|e| e.to_string())?;
+        let v = f.variable(name).ok_or("gone")?;
+        v.get_values::<f64, _>((vec![0], vec![n as usize]))
+            .map_err(|e| e.to_string())
+    }
+
+    /// Raw values `first .. first + n` of the grid in file order (whole
+    /// rows, or the whole grid), as f64.
+    pub(super) fn block(g: &Grid, first: usize, n: usize) -> std::result::Result<Vec<f64>, String> {
+        let f = netcdf::open(&g.path).map_err(|e| e.to_string())?;
+        let v = f.variable(&g.variable).ok_or("gone")?;
+        let inner = if g.transposed { g.height } else { g.width };
+        let mut start = vec![0; g.leading];
+        let mut count = vec![1; g.leading];
+        start.extend([first / inner, 0]);
+        count.extend([n / inner, inner]);
+        v.get_values::<f64, _>((start, count))
+            .map_err(|e| e.to_string())
     }
 }
