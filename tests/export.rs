@@ -57,6 +57,7 @@ fn every_golden_redrawn_from_its_export_is_the_reference() {
             "terrain.frag",
             "terrain-es.vert",
             "terrain-es.frag",
+            "terrain.wgsl",
         ] {
             let listed = e.manifest.files.iter().any(|f| f.name == shader);
             assert!(dir.join(shader).is_file() && listed, "{name}: {shader}");
@@ -95,7 +96,56 @@ fn every_golden_redrawn_from_its_export_is_the_reference() {
             name == "wireframe",
             "{name}: only the wire's varyings are linear"
         );
+        // The WGSL parses and validates as WebGPU would take it (naga, the
+        // front end wgpu uses), with both entry points, one `Frame` uniform
+        // buffer of the documented 160 bytes, linear varyings marked so,
+        // and texture bindings exactly for the effects that read maps.
+        let wgsl = es("terrain.wgsl");
+        let module = naga::front::wgsl::parse_str(&wgsl)
+            .unwrap_or_else(|err| panic!("{name}: {}", err.emit_to_string(&wgsl)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|err| panic!("{name}: {}", err.emit_to_string(&wgsl)));
+        let stages: Vec<_> = module.entry_points.iter().map(|p| p.stage).collect();
+        assert_eq!(
+            stages,
+            [naga::ShaderStage::Vertex, naga::ShaderStage::Fragment],
+            "{name}"
+        );
+        let frame = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Frame"))
+            .unwrap()
+            .1;
+        assert!(
+            matches!(frame.inner, naga::TypeInner::Struct { span: 160, .. }),
+            "{name}: {:?}",
+            frame.inner
+        );
+        assert_eq!(
+            wgsl.matches("@interpolate(linear)").count(),
+            e.info
+                .varyings
+                .iter()
+                .filter(|v| v.interpolation == "linear")
+                .count(),
+            "{name}"
+        );
+        let textures = module
+            .global_variables
+            .iter()
+            .filter(|(_, g)| g.space == naga::AddressSpace::Handle)
+            .count();
         let has = |effect: &str| e.info.effects.iter().any(|f| f.name() == effect);
+        assert_eq!(
+            textures,
+            2 * usize::from(has("shadows")) + 2 * usize::from(has("normal-map")),
+            "{name}"
+        );
         let frag = std::fs::read_to_string(dir.join("terrain.frag")).unwrap();
         assert!(
             frag.starts_with("#version 450") && frag.contains("precise"),

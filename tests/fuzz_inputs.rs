@@ -583,7 +583,7 @@ const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("golden", 67),
     ("tradeoff", 71),
     ("check-gpu", 71),
-    ("export", 83),
+    ("export", 88),
 ];
 
 /// `terraclip merge` of the two parts written to files: an exit with a

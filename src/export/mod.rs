@@ -11,6 +11,7 @@
 //! | `frame.json` | what shading needs besides the mesh: effects, shading constants, varyings, drawn levels, and what the EXR files hold |
 //! | `terrain.vert`, `terrain.frag` | the shading as GLSL 4.50 for an outside OpenGL renderer ([`glsl`]) |
 //! | `terrain-es.vert`, `terrain-es.frag` | the same as GLSL ES 3.00, for WebGL 2 and OpenGL ES |
+//! | `terrain.wgsl` | the same as WGSL, for WebGPU ([`wgsl`]) |
 //! | `colour.png` | the reference colour, RGBA8 |
 //! | `depth.exr`, `depth.f32` | the reference Depth32Float, as OpenEXR and as raw little-endian f32 rows, top row first |
 //! | `clipmap.exr` | each clipmap level's toroid of heights, one layer a level (clipmap scenes only) |
@@ -24,6 +25,7 @@
 pub mod exr;
 pub mod glb;
 pub mod glsl;
+pub mod wgsl;
 
 use crate::camera::Camera;
 use crate::clipmap::Clipmap;
@@ -456,6 +458,8 @@ pub fn files(src: &Source) -> Result<Files> {
     );
     out.push(("terrain-es.vert".into(), vert.into_bytes()));
     out.push(("terrain-es.frag".into(), frag.into_bytes()));
+    let wgsl = wgsl::shader(&frame_file.effects, &frame_file.varyings);
+    out.push(("terrain.wgsl".into(), wgsl.into_bytes()));
     out.push(("colour.png".into(), src.image.png()?));
     let (w, h) = (src.image.width as usize, src.image.height as usize);
     out.push((
