@@ -449,6 +449,29 @@ fn decode_symbols(
     Ok(())
 }
 
+/// Each context's cheapest model for the symbol `counts` seen in it (the
+/// first of equals; model 0 for a context no sample uses).
+fn cheapest(counts: &[Vec<u64>]) -> [u8; CONTEXTS] {
+    let costs = model::all_costs();
+    let mut best = [0u8; CONTEXTS];
+    for (b, counts) in best.iter_mut().zip(counts) {
+        if counts.iter().all(|&c| c == 0) {
+            continue;
+        }
+        let bits = |k: usize| -> f64 {
+            counts
+                .iter()
+                .zip(&costs[k])
+                .map(|(&c, &b)| c as f64 * b)
+                .sum()
+        };
+        *b = (0..SCALES)
+            .min_by(|&a, &b| bits(a).total_cmp(&bits(b)))
+            .unwrap_or(0) as u8;
+    }
+    best
+}
+
 /// Encodes one tile of `level` (its samples `src`), predicted from
 /// `coarse` (`None` on the coarsest level); returns the tile's bytes and
 /// its reconstruction.
@@ -527,28 +550,11 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             planes.interleave()
         }
     };
-    // Each context's cheapest model.
-    let costs = model::all_costs();
     let mut counts = vec![vec![0u64; model::SYMBOLS]; CONTEXTS];
     for (&c, &s) in ctx.iter().zip(&sym) {
         counts[c][s] += 1;
     }
-    let mut best = [0u8; CONTEXTS];
-    for (b, counts) in best.iter_mut().zip(&counts) {
-        if counts.iter().all(|&c| c == 0) {
-            continue;
-        }
-        let bits = |k: usize| -> f64 {
-            counts
-                .iter()
-                .zip(&costs[k])
-                .map(|(&c, &b)| c as f64 * b)
-                .sum()
-        };
-        *b = (0..SCALES)
-            .min_by(|&a, &b| bits(a).total_cmp(&bits(b)))
-            .unwrap_or(0) as u8;
-    }
+    let best = cheapest(&counts);
     let nodata: Vec<bool> = (0..n)
         .map(|i| src.nodata[src.index(x0 + i % w, y0 + i / w)])
         .collect();
@@ -1258,6 +1264,41 @@ mod tests {
         let expect = pred.map(|p| context(1, 1e-5, &thresholds(Quant::Bits.unit(p))) as u8);
         assert_eq!(out, expect);
         assert!(out[0] > out[1], "{out:?}");
+    }
+
+    /// A context's model is the cheapest for its counts, also where the
+    /// context has seen every symbol (white noise wider than ±K), and an
+    /// unused context keeps model 0.
+    #[test]
+    fn each_context_gets_its_cheapest_model() {
+        let costs = model::all_costs();
+        let mut counts = vec![vec![0u64; model::SYMBOLS]; CONTEXTS];
+        counts[3] = vec![1; model::SYMBOLS];
+        counts[5][model::K as usize] = 100;
+        counts[5][model::K as usize + 1] = 3;
+        let best = cheapest(&counts);
+        for c in [3, 5] {
+            let bits = |k: usize| -> f64 {
+                counts[c]
+                    .iter()
+                    .zip(&costs[k])
+                    .map(|(&n, &b)| n as f64 * b)
+                    .sum()
+            };
+            let want = (0..SCALES)
+                .min_by(|&a, &b| bits(a).total_cmp(&bits(b)))
+                .unwrap();
+            assert_eq!(best[c] as usize, want, "context {c}");
+        }
+        assert_ne!(best[3], best[5], "noise and a spike want different models");
+        assert_ne!(
+            best[3], 0,
+            "every symbol seen: not the unused context's model"
+        );
+        assert!(best
+            .iter()
+            .enumerate()
+            .all(|(c, &b)| b == 0 || c == 3 || c == 5));
     }
 
     /// The mask model gives no-data the tile's share of 2^24, clamped so
