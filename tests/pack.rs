@@ -393,6 +393,7 @@ fn a_lossless_level_written_back_reads_as_the_map() {
         data: map.data(),
         nodata: map.nodata_mask(),
         cell_size: map.cell_size,
+        place: None,
     };
     for ext in ["f32", "tif", "png"] {
         let path = tmp(&format!("back-{ext}.{ext}"));
@@ -420,6 +421,7 @@ fn a_lossless_level_written_back_reads_as_the_map() {
         data: map.data(),
         nodata: map.nodata_mask(),
         cell_size: [1.0; 2],
+        place: None,
     };
     let w = write(&tmp("back-range.png"), &grid, None).unwrap();
     let step = w.step_m.unwrap();

@@ -66,16 +66,28 @@ fn pack_info(a: &Args) -> anyhow::Result<()> {
         "max_error": h.max_error, "tile": h.tile, "bytes": bytes, "tiles": tiles,
         "cell_size": h.cell_size, "cell_size_m": h.cell_size, "filter": h.filter,
         "source": h.source, "predictor": h.predictor().name(),
+        "crs": h.place.as_ref().and_then(|p| p.epsg()).map(|c| format!("EPSG:{c}")),
+        "geotransform": h.place.as_ref().map(|p| p.geotransform()),
+        "nodata": h.place.as_ref().and_then(|p| p.nodata),
     });
     super::report(a.json, v, || {
         format!(
-            "{}: pack of {w}×{hh}, {} levels, max error {} m ({} prediction), {tiles} tiles of {}², {bytes} bytes, from {}",
+            "{}: pack of {w}×{hh}, {} levels, max error {} m ({} prediction), {tiles} tiles of {}², {bytes} bytes, from {}{}",
             a.heightmap.display(),
             h.levels(),
             h.max_error,
             h.predictor().name(),
             h.tile,
-            h.source
+            h.source,
+            match &h.place {
+                Some(p) => format!(
+                    ", placed ({}, origin {:?}, cells {:?})",
+                    p.epsg().map_or("CRS by its GeoKeys".into(), |c| format!("EPSG:{c}")),
+                    p.origin,
+                    p.pixel_scale
+                ),
+                None => String::new(),
+            }
         )
     });
     Ok(())

@@ -86,6 +86,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         data: &data,
         nodata: &nodata,
         cell_size: header.cell_size.map(|c| c * spacing),
+        place: header.place.as_ref().map(|p| p.of_window(a.level, x, y)),
     };
     let lattice = match header.level_quant(a.level) {
         Some(Quant::Lattice { offset, scale }) => Some(Lattice { offset, scale }),
@@ -97,6 +98,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "width": w, "height": h, "cell_size_m": grid.cell_size,
         "max_error": header.max_error, "sidecar": written.sidecar,
         "png_step_m": written.step_m, "png_error_m": written.max_error_m,
+        "crs": grid.place.as_ref().and_then(|p| p.epsg()).map(|c| format!("EPSG:{c}")),
+        "geotransform": grid.place.as_ref().map(|p| p.geotransform()),
+        "nodata": grid.place.as_ref().and_then(|p| p.nodata),
     });
     let out = a.out.display();
     super::report(a.json, v, || {

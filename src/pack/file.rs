@@ -59,6 +59,11 @@ pub struct Header {
     /// What was packed (a file name, or the scene's procedural terrain).
     pub source: String,
     levels: Vec<LevelSpec>,
+    /// Where the map lies (CRS, position, no-data value), where the input
+    /// said: `unpack` writes it back. Absent from packs of maps that say
+    /// nothing, so their headers are as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub place: Option<crate::terrain::place::Place>,
 }
 
 impl Header {
@@ -131,6 +136,7 @@ impl Header {
                     range,
                 })
                 .collect(),
+            place: None,
         }
     }
 }
@@ -511,6 +517,9 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
             "cell size {:?} is not finite and positive",
             h.cell_size
         ));
+    }
+    if let Some(p) = &h.place {
+        p.check().map_err(|r| format!("place: {r}"))?;
     }
     for (l, spec) in h.levels.iter().enumerate() {
         let fine = match spec.quant {

@@ -416,7 +416,7 @@ pub fn pack(
     bodies.reverse();
 
     // 4. The file.
-    let header = Header::new(
+    let mut header = Header::new(
         src.cell_size(),
         &o.filter.name(),
         o.max_error,
@@ -424,6 +424,7 @@ pub fn pack(
         &o.source,
         (0..levels).map(|l| (sizes[l][0], sizes[l][1], quants[l], ranges[l])),
     );
+    header.place = src.place();
     let all: Vec<(u32, u32)> = index.iter().flatten().copied().collect();
     let prefix = file::prefix(&header, &all)?;
     let bytes = prefix.len() as u64 + all.iter().map(|t| t.0 as u64).sum::<u64>();

@@ -38,7 +38,7 @@ pub enum LazyBase {
     /// Generated tile by tile.
     Procedural(Procedural),
     /// Already whole (a loaded file): only the coarser levels are lazy.
-    Heightmap(Heightmap),
+    Heightmap(Box<Heightmap>),
 }
 
 impl LazyBase {
@@ -61,7 +61,7 @@ impl LazyBase {
             None => {
                 let h = crate::terrain::load(spec, base_dir)?;
                 let world = WorldMap::for_terrain(spec, h.cell_size);
-                Ok((LazyBase::Heightmap(h), world))
+                Ok((LazyBase::Heightmap(Box::new(h)), world))
             }
         }
     }
@@ -189,7 +189,7 @@ impl Pyramid {
                 p.validate()?;
                 (unbuilt(p.width, p.height), Some(p), false)
             }
-            LazyBase::Heightmap(h) => (PyramidLevel::of_heightmap(h), None, true),
+            LazyBase::Heightmap(h) => (PyramidLevel::of_heightmap(*h), None, true),
         };
         let mut levels = vec![first];
         while levels.len() < count.max(1) {

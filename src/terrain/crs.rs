@@ -67,6 +67,24 @@ pub fn parse(crs: &str) -> Result<u16, String> {
         .ok_or_else(|| format!("'{crs}': give the CRS as EPSG:<code>, such as EPSG:4326"))
 }
 
+/// The place of a map whose file names no CRS, once `declared` names it:
+/// its pixel scale and corner in the declared CRS's units. The no-data
+/// value is not known here; unpacked, no-data is NaN.
+pub fn declared_place(
+    declared: &str,
+    undeclared: Option<&Undeclared>,
+) -> Option<super::place::Place> {
+    let code = parse(declared).ok()?;
+    let u = undeclared?;
+    Some(super::place::Place::from_epsg(
+        code,
+        GEOGRAPHIC.contains(&code),
+        u.scale,
+        u.corner,
+        None,
+    ))
+}
+
 /// The cell size in metres and the CRS's name when `declared` is the CRS
 /// of a map whose file names `file_crs` (or none, placed by `undeclared`),
 /// with cells of `cell` as read. A geographic CRS converts the degrees

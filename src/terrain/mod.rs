@@ -15,6 +15,7 @@ mod image_file;
 #[cfg(feature = "lerc")]
 mod lerc_tiff;
 pub mod netcdf;
+pub mod place;
 pub mod procedural;
 mod raw;
 pub mod rows;
@@ -54,6 +55,9 @@ pub struct Heightmap {
     /// Where a GeoTIFF names no CRS, its pixel scale and tie point, which
     /// a declared CRS converts from ([`crs`]).
     pub undeclared: Option<crs::Undeclared>,
+    /// Where the map lies (CRS, position, no-data value), where its file
+    /// says: a pack keeps it, and `unpack` writes it back.
+    pub place: Option<place::Place>,
     /// The lattice the reader decoded every sample from, where it knows
     /// one (a 16-bit PNG and its sidecar, an 8- or 16-bit integer image):
     /// a lossless pack codes the integer codes instead of the f32 bits.
@@ -169,6 +173,7 @@ impl Heightmap {
             format: format.into(),
             crs: None,
             undeclared: None,
+            place: None,
             lattice: None,
         })
     }
@@ -222,6 +227,9 @@ impl Heightmap {
         )?;
         self.cell_size = cell;
         self.crs = Some(name);
+        if self.place.is_none() {
+            self.place = crs::declared_place(declared, self.undeclared.as_ref());
+        }
         Ok(())
     }
 

@@ -408,6 +408,8 @@ pub(super) struct Grid {
     pub cell_size: [f64; 2],
     pub crs: Option<String>,
     pub undeclared: Option<super::crs::Undeclared>,
+    /// Where the grid lies, where its axes and grid mapping say.
+    pub place: Option<super::place::Place>,
     pub format: String,
     ty: NcType,
     begin: u64,
@@ -655,6 +657,14 @@ fn choose(
     let flip_x = ax.is_some_and(|a| a.step < 0.0);
     let step = |a: Option<Axis>| a.map_or(1.0, |a| a.step.abs());
     let cell = [step(ax), step(ay)];
+    // The grid's north-west corner in its own units: the first cell's
+    // centre less half a cell, whichever way the axes run.
+    let corner = |x: Axis, y: Axis| {
+        [
+            x.first.min(x.first + x.step * (width - 1) as f64) - cell[0] / 2.0,
+            y.first.max(y.first + y.step * (height - 1) as f64) + cell[1] / 2.0,
+        ]
+    };
     let (cell_size, crs, undeclared) = match (ax, ay) {
         (Some(x), Some(y)) if geographic => {
             let lat = y.first + y.step * (height - 1) as f64 / 2.0;
@@ -686,14 +696,12 @@ fn choose(
                 None => {
                     // Units unnamed: placed in its own units, which may be
                     // degrees ([`super::crs`] warns).
-                    let west = x.first.min(x.first + x.step * (width - 1) as f64) - cell[0] / 2.0;
-                    let north = y.first.max(y.first + y.step * (height - 1) as f64) + cell[1] / 2.0;
                     (
                         cell,
                         None,
                         Some(super::crs::Undeclared {
                             scale: cell,
-                            corner: [west, north],
+                            corner: corner(x, y),
                             rows: height as usize,
                         }),
                     )
@@ -722,6 +730,38 @@ fn choose(
             "{field}: scale_factor {scale} and add_offset {offset} are not finite and non-zero"
         ));
     }
+    let negate = v.text("standard_name") == Some(DEPTH_NAME);
+    // Where the grid lies, for a pack to give back: a lat/lon grid in its
+    // grid mapping's EPSG CRS (WGS 84's 4326 where it names none), a
+    // projected one only where its EPSG code is named. No-data is the
+    // first fill value as a height.
+    let place = match (ax, ay, crs.as_deref()) {
+        (Some(x), Some(y), Some(name)) => name
+            .strip_prefix("EPSG:")
+            .and_then(|c| c.parse::<u16>().ok())
+            .or(geographic.then_some(4326))
+            .map(|code| {
+                // Metres per coordinate unit of a projected grid (km axes).
+                let unit = if geographic {
+                    1.0
+                } else {
+                    cell_size[0] / cell[0]
+                };
+                let nodata = fills
+                    .first()
+                    .map(|f| (f * scale + offset) * if negate { -1.0 } else { 1.0 })
+                    .filter(|h| h.is_finite() && h.abs() <= f32::MAX as f64);
+                let [w, n] = corner(x, y);
+                super::place::Place::from_epsg(
+                    code,
+                    geographic,
+                    [cell[0] * unit, cell[1] * unit],
+                    [w * unit, n * unit],
+                    nodata,
+                )
+            }),
+        _ => None,
+    };
     Ok(Grid {
         path: path.to_path_buf(),
         variable: v.name.clone(),
@@ -740,9 +780,10 @@ fn choose(
         flip_x,
         scale,
         offset,
-        negate: v.text("standard_name") == Some(DEPTH_NAME),
+        negate,
         fills,
         valid,
+        place,
     })
 }
 
@@ -876,6 +917,7 @@ pub(super) fn read(path: &Path, variable: Option<&str>) -> Result<super::Heightm
     )?;
     map.crs = g.crs;
     map.undeclared = g.undeclared;
+    map.place = g.place;
     Ok(map)
 }
 
@@ -915,6 +957,9 @@ impl super::rows::RowSource for NetcdfRows {
     }
     fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
         (self.grid.crs.clone(), self.grid.undeclared)
+    }
+    fn place(&self) -> Option<super::place::Place> {
+        self.grid.place.clone()
     }
 }
 

@@ -13,6 +13,9 @@ pub(super) struct Raw {
     offset: f64,
     scale: f64,
     nodata: Option<f32>,
+    /// Where the map lies, as the sidecar's `place` says (what `unpack`
+    /// writes beside a `.f32`).
+    pub place: Option<super::place::Place>,
 }
 
 impl Raw {
@@ -62,6 +65,7 @@ impl Raw {
             offset: side.raw_offset_m.unwrap_or(0.0),
             scale: side.raw_scale_m_per_unit.unwrap_or(1.0),
             nodata: side.nodata.map(|v| v as f32),
+            place: side.place,
         })
     }
 
@@ -83,7 +87,7 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
     let raw = Raw::open(path, super::check_dimensions)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let values = raw.decode(&bytes).collect();
-    named(
+    let mut map = named(
         path,
         Heightmap::from_values(
             raw.width,
@@ -93,5 +97,7 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
             raw.cell_size,
             "raw-f32",
         ),
-    )
+    )?;
+    map.place = raw.place;
+    Ok(map)
 }

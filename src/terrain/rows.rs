@@ -44,6 +44,10 @@ pub trait RowSource: Sync {
     fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
         (None, None)
     }
+    /// Where the map lies, as its file says ([`super::place`]).
+    fn place(&self) -> Option<super::place::Place> {
+        None
+    }
 }
 
 /// `src` with the CRS `declared` for the file at `path` applied to its
@@ -54,6 +58,9 @@ pub fn with_crs(
     declared: &str,
 ) -> Result<Box<dyn RowSource>> {
     let (file_crs, undeclared) = src.georef();
+    let place = src
+        .place()
+        .or_else(|| super::crs::declared_place(declared, undeclared.as_ref()));
     let (cell, _) = crate::terrain::named(
         path,
         super::crs::declare(
@@ -63,7 +70,7 @@ pub fn with_crs(
             src.cell_size(),
         ),
     )?;
-    Ok(Box::new(WithCell(src, cell)))
+    Ok(Box::new(WithCell(src, cell, place)))
 }
 
 /// The warning for a file at `path` read as `src` that names no CRS and
@@ -95,7 +102,10 @@ pub fn for_terrain(spec: &crate::terrain::Spec, base_dir: &Path) -> Result<Box<d
         }
     };
     Ok(match cell {
-        Some(c) => Box::new(WithCell(src, c)),
+        Some(c) => {
+            let place = src.place();
+            Box::new(WithCell(src, c, place))
+        }
         None => src,
     })
 }
@@ -125,8 +135,9 @@ pub fn open_var(path: &Path, variable: Option<&str>) -> Result<Box<dyn RowSource
     })
 }
 
-/// A source with its cell size overridden (a scene's `cell_size`).
-struct WithCell(Box<dyn RowSource>, [f64; 2]);
+/// A source with its cell size overridden (a scene's `cell_size`, or a
+/// declared CRS's conversion) and its place (kept, or the declared CRS's).
+struct WithCell(Box<dyn RowSource>, [f64; 2], Option<super::place::Place>);
 
 impl RowSource for WithCell {
     fn size(&self) -> [usize; 2] {
@@ -143,6 +154,9 @@ impl RowSource for WithCell {
     }
     fn lattice(&self) -> Option<Lattice> {
         self.0.lattice()
+    }
+    fn place(&self) -> Option<super::place::Place> {
+        self.2.clone()
     }
 }
 
@@ -168,6 +182,9 @@ impl RowSource for MapRows {
     }
     fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
         (self.0.crs.clone(), self.0.undeclared)
+    }
+    fn place(&self) -> Option<super::place::Place> {
+        self.0.place.clone()
     }
     fn lattice(&self) -> Option<Lattice> {
         self.0.lattice
@@ -257,6 +274,9 @@ impl RowSource for RawRows {
     fn cell_size(&self) -> [f64; 2] {
         self.raw.cell_size
     }
+    fn place(&self) -> Option<super::place::Place> {
+        self.raw.place.clone()
+    }
 }
 
 /// A TIFF read by its chunks: each band decodes the rows of chunks it
@@ -268,6 +288,7 @@ pub struct TiffRows {
     cell_size: [f64; 2],
     crs: Option<String>,
     undeclared: Option<super::crs::Undeclared>,
+    place: Option<super::place::Place>,
     nodata: Option<f32>,
     chunk: [usize; 2],
     inner: Mutex<TiffState>,
@@ -298,6 +319,7 @@ impl TiffRows {
             cell_size: tiff.cell_size,
             crs: tiff.crs.clone(),
             undeclared: tiff.undeclared,
+            place: tiff.place.clone(),
             nodata: tiff.nodata,
             chunk,
             inner: Mutex::new(TiffState { tiff, cached: None }),
@@ -363,5 +385,8 @@ impl RowSource for TiffRows {
     }
     fn georef(&self) -> (Option<String>, Option<super::crs::Undeclared>) {
         (self.crs.clone(), self.undeclared)
+    }
+    fn place(&self) -> Option<super::place::Place> {
+        self.place.clone()
     }
 }

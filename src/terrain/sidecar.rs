@@ -29,6 +29,8 @@ pub(crate) struct Sidecar {
     /// Decode for raw f32 files: `elev = raw_offset_m + value × raw_scale_m_per_unit`.
     pub raw_offset_m: Option<f64>,
     pub raw_scale_m_per_unit: Option<f64>,
+    /// Where the map lies (CRS, position, no-data), as `unpack` writes it.
+    pub place: Option<super::place::Place>,
 }
 
 impl Sidecar {
@@ -40,6 +42,10 @@ impl Sidecar {
             if !(c.x.is_finite() && c.y.is_finite() && c.x > 0.0 && c.y > 0.0) {
                 return Err(Error::file(path, "cell_size_m must be finite and positive"));
             }
+        }
+        if let Some(p) = &s.place {
+            p.check()
+                .map_err(|r| Error::file(path, format!("place: {r}")))?;
         }
         if let Some(p) = &s.png16 {
             if !(p.png16_offset_m.is_finite() && p.png16_scale_m_per_unit.is_finite()) {

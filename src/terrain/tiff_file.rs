@@ -24,6 +24,9 @@ pub(super) struct Tiff {
     pub nodata: Option<f32>,
     /// The pixel scale and tie point of a file that names no CRS.
     pub undeclared: Option<super::crs::Undeclared>,
+    /// The CRS, position and no-data value, kept for a GeoTIFF written
+    /// back out.
+    pub place: Option<super::place::Place>,
     /// A LERC file's chunk table (feature `lerc`).
     #[cfg(feature = "lerc")]
     lerc: Option<super::lerc_tiff::LercChunks>,
@@ -99,10 +102,15 @@ impl Tiff {
             }
             _ => None,
         };
-        let keys = match dec.find_tag(Tag::GeoKeyDirectoryTag) {
-            Ok(Some(v)) => geo_keys(&v.into_u16_vec().map_err(&bad)?)
-                .map_err(|r| Error::file(path, format!("GeoTIFF key directory: {r}")))?,
-            _ => GeoKeys::default(),
+        let directory = match dec.find_tag(Tag::GeoKeyDirectoryTag) {
+            Ok(Some(v)) => Some(v.into_u16_vec().map_err(&bad)?),
+            _ => None,
+        };
+        let keys = match &directory {
+            Some(d) => {
+                geo_keys(d).map_err(|r| Error::file(path, format!("GeoTIFF key directory: {r}")))?
+            }
+            None => GeoKeys::default(),
         };
         let tiepoint = match dec.find_tag(Tag::ModelTiepointTag) {
             Ok(Some(v)) => Some(v.into_f64_vec().map_err(&bad)?),
@@ -126,10 +134,33 @@ impl Tiff {
                     let t = s.trim_matches(|c: char| c == '\0' || c.is_whitespace());
                     Some(t.parse::<f64>().map_err(|_| {
                         Error::file(path, format!("GDAL_NODATA '{t}' is not a number"))
-                    })? as f32)
+                    })?)
                 }
                 _ => None,
             };
+        let doubles = match dec.find_tag(Tag::GeoDoubleParamsTag) {
+            Ok(Some(v)) => v.into_f64_vec().map_err(&bad)?,
+            _ => Vec::new(),
+        };
+        let ascii = match dec.find_tag(Tag::GeoAsciiParamsTag) {
+            Ok(Some(v)) => v.into_string().map_err(&bad)?,
+            _ => String::new(),
+        };
+        // Kept only to be written back: a placement that does not add up
+        // (a key pointing past its parameters, a short tie point) costs
+        // the unpacked file its place, not the map its heights, as GDAL
+        // too reads such files with a warning.
+        let place = super::place::Place::from_geotiff(
+            directory,
+            doubles,
+            ascii,
+            scale,
+            tiepoint.as_deref(),
+            nodata.filter(|v| v.is_finite()),
+        )
+        .ok()
+        .flatten();
+        let nodata = nodata.map(|v| v as f32);
         #[cfg(feature = "lerc")]
         let lerc = super::lerc_tiff::LercChunks::open(&mut dec, path)?;
         Ok(Tiff {
@@ -140,6 +171,7 @@ impl Tiff {
             crs,
             nodata,
             undeclared,
+            place,
             #[cfg(feature = "lerc")]
             lerc,
         })
@@ -209,6 +241,7 @@ pub(super) fn read(path: &Path) -> Result<Heightmap> {
     )?;
     map.crs = t.crs;
     map.undeclared = t.undeclared;
+    map.place = t.place;
     Ok(map)
 }
 

@@ -1,9 +1,13 @@
 //! Heightmaps written back out, in forms this crate's readers (and GIS
-//! tools) read: raw f32 with its JSON sidecar, a single-band f32 GeoTIFF
-//! with its cell size, or a 16-bit PNG with its sidecar. No-data samples
-//! are written as NaN (f32 forms) or transparent (PNG). Every file goes
-//! through a temporary file and a rename.
+//! tools) read: raw f32 with its JSON sidecar, a single-band f32 GeoTIFF,
+//! or a 16-bit PNG with its sidecar. A grid with a [`Place`] is written
+//! where it lies: the GeoTIFF gets the input's GeoKeys, tie point, pixel
+//! scale in the CRS's units and GDAL_NODATA, the f32 sidecar the same
+//! facts. No-data samples are written as the input's no-data value, else
+//! NaN (f32 forms), or transparent (PNG). Every file goes through a
+//! temporary file and a rename.
 
+use super::place::Place;
 use super::Lattice;
 use crate::error::{write_atomic, Error, Result};
 use serde_json::json;
@@ -21,14 +25,25 @@ pub struct Grid<'a> {
     pub nodata: &'a [bool],
     /// Metres per cell, x and y.
     pub cell_size: [f64; 2],
+    /// Where this grid (not level 0 of its pack) lies, if known.
+    pub place: Option<Place>,
 }
 
 impl Grid<'_> {
+    /// The value written for no-data: the input's, else NaN.
+    fn nodata_value(&self) -> f32 {
+        self.place
+            .as_ref()
+            .and_then(|p| p.nodata)
+            .map_or(f32::NAN, |v| v as f32)
+    }
+
     fn values(&self) -> impl Iterator<Item = f32> + '_ {
+        let fill = self.nodata_value();
         self.data
             .iter()
             .zip(self.nodata)
-            .map(|(&v, &nd)| if nd { f32::NAN } else { v })
+            .map(move |(&v, &nd)| if nd { fill } else { v })
     }
 }
 
@@ -81,7 +96,16 @@ fn sidecar(path: &Path, g: &Grid, extra: serde_json::Value) -> Result<PathBuf> {
 fn write_f32(path: &Path, g: &Grid) -> Result<Written> {
     let bytes: Vec<u8> = g.values().flat_map(f32::to_le_bytes).collect();
     write_atomic(path, &bytes)?;
-    let side = sidecar(path, g, json!({}))?;
+    let extra = match &g.place {
+        Some(p) => json!({
+            "nodata": p.nodata,
+            "crs": p.epsg().map(|c| format!("EPSG:{c}")),
+            "geotransform": p.geotransform(),
+            "place": p,
+        }),
+        None => json!({}),
+    };
+    let side = sidecar(path, g, extra)?;
     Ok(Written {
         sidecar: Some(side),
         ..Written::default()
@@ -96,12 +120,41 @@ fn write_tiff(path: &Path, g: &Grid) -> Result<Written> {
     let mut enc = TiffEncoder::new(&mut out).map_err(bad)?;
     let (w, h) = (g.width as u32, g.height as u32);
     let mut img = enc.new_image::<colortype::Gray32Float>(w, h).map_err(bad)?;
-    img.encoder()
-        .write_tag(
-            Tag::ModelPixelScaleTag,
-            &[g.cell_size[0], g.cell_size[1], 0.0][..],
-        )
-        .map_err(bad)?;
+    let e = img.encoder();
+    match &g.place {
+        Some(p) => {
+            let [sx, sy] = p.pixel_scale;
+            e.write_tag(Tag::ModelPixelScaleTag, &[sx, sy, 0.0][..])
+                .map_err(bad)?;
+            e.write_tag(Tag::ModelTiepointTag, &p.tiepoint()[..])
+                .map_err(bad)?;
+            e.write_tag(Tag::GeoKeyDirectoryTag, &p.geokeys[..])
+                .map_err(bad)?;
+            if !p.geo_doubles.is_empty() {
+                e.write_tag(Tag::GeoDoubleParamsTag, &p.geo_doubles[..])
+                    .map_err(bad)?;
+            }
+            if !p.geo_ascii.is_empty() {
+                e.write_tag(Tag::GeoAsciiParamsTag, p.geo_ascii.as_str())
+                    .map_err(bad)?;
+            }
+        }
+        None => e
+            .write_tag(
+                Tag::ModelPixelScaleTag,
+                &[g.cell_size[0], g.cell_size[1], 0.0][..],
+            )
+            .map_err(bad)?,
+    }
+    // GDAL's no-data tag: the input's value, or NaN where the grid has
+    // no-data and no value was given.
+    let nodata = match g.place.as_ref().and_then(|p| p.nodata) {
+        Some(v) => Some(format!("{v}")),
+        None => g.nodata.contains(&true).then(|| "nan".to_string()),
+    };
+    if let Some(text) = nodata {
+        e.write_tag(Tag::GdalNodata, text.as_str()).map_err(bad)?;
+    }
     let values: Vec<f32> = g.values().collect();
     img.write_data(&values).map_err(bad)?;
     write_atomic(path, out.get_ref())?;
