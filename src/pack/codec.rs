@@ -1301,6 +1301,74 @@ mod tests {
             .all(|(c, &b)| b == 0 || c == 3 || c == 5));
     }
 
+    /// A lattice is used only where a quantiser can (finite origin, a
+    /// finite step > 0), a sample is on it only where it is exactly a
+    /// point of it, and a lossless level takes it only where every sample
+    /// is on it.
+    #[test]
+    fn lattices_are_used_only_where_every_sample_is_on_them() {
+        let l = |offset: f64, scale: f64| Some(Lattice { offset, scale });
+        assert_eq!(usable(l(1.0, 0.5)), l(1.0, 0.5));
+        for bad in [
+            l(1.0, 0.0),
+            l(1.0, -0.5),
+            l(1.0, f64::INFINITY),
+            l(1.0, f64::NAN),
+            l(f64::NAN, 0.5),
+            l(f64::INFINITY, 0.5),
+        ] {
+            assert_eq!(usable(bad), None, "{bad:?}");
+        }
+        let half = Lattice {
+            offset: 0.25,
+            scale: 0.5,
+        };
+        assert!(on_lattice(1.75, half));
+        assert!(!on_lattice(1.5, half));
+        assert!(!on_lattice(f32::INFINITY, half));
+        // A step so fine that k overflows to infinity: not on it.
+        let fine = Lattice {
+            offset: 0.0,
+            scale: 1e-308,
+        };
+        assert!(!on_lattice(3e38, fine));
+        let on = PyramidLevel::from_parts(2, 1, vec![0.75, 1.25], vec![false; 2]);
+        let off = PyramidLevel::from_parts(2, 1, vec![0.75, 1.3], vec![false; 2]);
+        let lossless = |lv: &PyramidLevel| quant_for(lv, 0.0, Some(half), Predictor::Lifting);
+        assert_eq!(
+            lossless(&on),
+            Quant::Lattice {
+                offset: 0.25,
+                scale: 0.5
+            }
+        );
+        assert_eq!(lossless(&off), Quant::Bits);
+        assert_eq!(
+            quant_for(&on, 1.0, Some(half), Predictor::Lifting),
+            Quant::Step { max_error: 1.0 }
+        );
+    }
+
+    /// A tile outside the level's grid in either direction is an error
+    /// naming it, not a panic or another tile.
+    #[test]
+    fn tiles_outside_the_grid_are_refused() {
+        let lv =
+            PyramidLevel::from_parts(8, 4, (0..32).map(|i| i as f32).collect(), vec![false; 32]);
+        let (packed, _) = Packed::encode(std::slice::from_ref(&lv), 0.5, 4, None);
+        assert_eq!(packed.tiles_of(0), [2, 1]);
+        assert!(packed.decode_tile(0, [1, 0], &lv).is_ok());
+        for t in [[2, 0], [0, 1], [2, 1]] {
+            let e = packed.decode_tile(0, t, &lv).unwrap_err();
+            assert_eq!(e.tile, t);
+            assert!(
+                e.reason.contains("outside the level's 2 × 1 tiles"),
+                "{}",
+                e.reason
+            );
+        }
+    }
+
     /// The mask model gives no-data the tile's share of 2^24, clamped so
     /// both symbols stay codable.
     #[test]

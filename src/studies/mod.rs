@@ -10,6 +10,8 @@ pub mod fly;
 pub mod merge;
 pub mod metrics;
 pub(crate) mod report;
+/// Scatter charts with a Pareto front, which the benches draw too.
+pub use report::chart;
 pub mod scaling;
 /// A sweep's parts: the studies take a [`shard::Shard`]; the type sits below
 /// every stage that is sharded.

@@ -10,15 +10,22 @@ use crate::error::{Error, Result};
 /// One named series of (x, y) points.
 #[derive(Clone, Debug)]
 pub struct Series {
+    /// The legend's name.
     pub name: String,
+    /// (x, y) in the axes' units.
     pub points: Vec<(f64, f64)>,
 }
 
+/// A scatter chart: series, axes, and the front drawn dashed.
 #[derive(Clone, Debug)]
 pub struct Chart {
+    /// The line above the plot.
     pub title: String,
+    /// The x axis's label, with its unit.
     pub x_label: String,
+    /// The y axis's label, with its unit.
     pub y_label: String,
+    /// The points, a colour and legend entry per series.
     pub series: Vec<Series>,
     /// Points of the Pareto front, in x order.
     pub front: Vec<(f64, f64)>,
@@ -48,7 +55,9 @@ const COLOURS: [[u8; 3]; 8] = [
 
 /// What the chart needs from an output format.
 pub trait Canvas {
+    /// A line from `a` to `b`, `width` pixels wide.
     fn line(&mut self, a: (f64, f64), b: (f64, f64), rgb: [u8; 3], width: f64, dashed: bool);
+    /// A circle of radius `r` at `c`.
     fn circle(&mut self, c: (f64, f64), r: f64, rgb: [u8; 3], filled: bool);
     /// Text with its baseline at `p`; `size` is the cap height in pixels.
     fn text(&mut self, p: (f64, f64), s: &str, size: f64, anchor: Anchor, vertical: bool);
@@ -235,6 +244,7 @@ impl Chart {
         }
     }
 
+    /// The chart as an SVG document.
     pub fn svg(&self) -> String {
         let mut s = SvgCanvas(String::new());
         self.draw(&mut s);
@@ -244,6 +254,7 @@ impl Chart {
         )
     }
 
+    /// The chart as PNG bytes (tiny-skia, the same drawing as the SVG).
     pub fn png(&self) -> Result<Vec<u8>> {
         let pixmap = tiny_skia::Pixmap::new(W as u32, H as u32)
             .ok_or_else(|| Error::value("chart", "cannot allocate the image"))?;

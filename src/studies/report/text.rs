@@ -11,8 +11,11 @@ use tiny_skia::{FillRule, Paint, PathBuilder, Pixmap, Transform};
 /// Where the reference point sits along the text.
 #[derive(Clone, Copy, PartialEq, Debug)]
 pub enum Anchor {
+    /// The text starts at the point.
     Start,
+    /// The text is centred on the point.
     Middle,
+    /// The text ends at the point.
     End,
 }
 
