@@ -260,3 +260,57 @@ fn gdal_places_unpacked_maps_where_the_input_was() {
         }
     }
 }
+
+/// The header's `place` mutated as a JSON tree (numbers, strings, keys,
+/// nesting), the checksums made right: every case loads or is refused
+/// naming the file, never a panic; every 8th loaded case is unpacked to a
+/// GeoTIFF through the CLI, which exits 0 with a file terraclip reads
+/// back, or 1.
+#[test]
+fn mutated_places_load_or_name_the_file() {
+    use common::fuzz::{edit_json, Rng};
+    let pack = tmp("fuzz-seed.tcz");
+    run(&[
+        "pack",
+        GEOGRAPHIC,
+        "-o",
+        pack.to_str().unwrap(),
+        "--tile",
+        "16",
+    ]);
+    let parts = common::packs::Parts::of(&std::fs::read(&pack).unwrap());
+    let header = parts.header();
+    let mut rng = Rng(0x9E0_7EF5_0001);
+    let case = tmp("fuzz-case.tcz");
+    let (mut loaded, mut refused, mut unpacked, mut failures) = (0, 0, 0, vec![]);
+    for i in 0..400 {
+        let mut h = header.clone();
+        edit_json(&mut rng, &mut h["place"]);
+        std::fs::write(&case, parts.with_header(&h).assemble()).unwrap();
+        match common::packs::pack_once(&case) {
+            Ok(true) => {
+                loaded += 1;
+                if loaded % 8 == 0 {
+                    let out = tmp("fuzz-out.tif");
+                    let (code, _, err) = cli(&[
+                        "unpack",
+                        case.to_str().unwrap(),
+                        "-o",
+                        out.to_str().unwrap(),
+                    ]);
+                    match code {
+                        0 if Heightmap::load(&out).is_ok() => unpacked += 1,
+                        1 if err.contains("fuzz-case.tcz") => {}
+                        _ => failures.push(format!("case {i}: unpack exit {code}: {err}")),
+                    }
+                }
+            }
+            Ok(false) => refused += 1,
+            Err(e) => failures.push(format!("case {i}: {e}")),
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+    eprintln!("place fuzz: of 400, {loaded} loaded ({unpacked} unpacked), {refused} refused");
+    assert_eq!((loaded, refused, unpacked), (151, 249, 18));
+    assert!(loaded >= 40 && refused >= 40);
+}
