@@ -232,10 +232,10 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("export manifest", 5),
     ("compare", 49),
     ("merge cracks", 21),
-    ("merge fly", 22),
+    ("merge fly", 29),
     ("merge golden", 34),
-    ("merge tradeoff", 23),
-    ("merge check-gpu", 30),
+    ("merge tradeoff", 24),
+    ("merge check-gpu", 31),
     ("merge export", 23),
 ];
 
@@ -579,11 +579,11 @@ fn merge_result(
 /// a third are edited as a tree, which keeps the JSON whole).
 const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("cracks", 78),
-    ("fly", 73),
-    ("golden", 67),
-    ("tradeoff", 71),
-    ("check-gpu", 71),
-    ("export", 88),
+    ("fly", 74),
+    ("golden", 65),
+    ("tradeoff", 78),
+    ("check-gpu", 73),
+    ("export", 87),
 ];
 
 /// `terraclip merge` of the two parts written to files: an exit with a

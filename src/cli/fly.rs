@@ -101,6 +101,17 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             report.texels_updated,
             report.popping_max
         );
+        if let Some(b) = &report.update_budget {
+            println!(
+                "decoding feeds {:.0} level-0 texels a frame in the whole frame, {:.1} in 10 % of it                  ({:.0} samples/ms, {:.0} samples a texel, {:.1} ms frames{})",
+                b.texels_per_frame,
+                b.texels_per_frame_at_10_percent,
+                b.samples_per_ms,
+                b.samples_per_texel,
+                b.frame_ms,
+                if b.every_level_drawn { "" } else { "; levels were dropped" }
+            );
+        }
     }
     Ok(())
 }

@@ -34,6 +34,10 @@ pub struct FlyFrame {
     pub pyramid_samples: u64,
     /// The tiles they came in.
     pub pyramid_tiles: u64,
+    /// Level-0 texels the eye moved since the previous frame
+    /// (horizontally, in cells of level 0).
+    #[serde(default)]
+    pub texels_moved: f64,
     /// Against the previous frame (metrics::popping); 0 for the first
     /// frame, for brute force itself and with popping off.
     pub popping: f64,
@@ -55,6 +59,70 @@ pub struct FlyReport {
     /// The process's peak resident memory after the flight (bytes; 0 where
     /// the platform does not say).
     pub peak_rss_bytes: u64,
+    /// What the pack's decoding lets a flight sustain (flights over a
+    /// pack or a lazy pyramid that decoded while moving).
+    #[serde(default)]
+    pub update_budget: Option<UpdateBudget>,
+}
+
+/// The fastest flight the decoder can feed, from the flight's own figures
+/// over its moving frames after the first: how many samples it decodes
+/// per level-0 texel moved, how fast the LOD update pass turns samples
+/// out (decoding and toroid writes together, so a floor on the decoder's
+/// rate), and the median frame. A flight at `v` texels a frame needs
+/// `v × samples_per_texel / samples_per_ms` ms of update a frame: the
+/// largest `v` whose update fits the whole frame, and 10 % of it. Valid
+/// where every level is drawn (`every_level_drawn`): a budget that drops
+/// levels decodes less than the motion asks for.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct UpdateBudget {
+    /// Samples the update pass decoded per millisecond it took.
+    pub samples_per_ms: f64,
+    /// Samples decoded per level-0 texel the eye moved.
+    pub samples_per_texel: f64,
+    /// Median frame time of the moving frames (ms).
+    pub frame_ms: f64,
+    /// Level-0 texels a frame the update could feed in the whole frame.
+    pub texels_per_frame: f64,
+    /// The same with the update held to 10 % of the frame.
+    pub texels_per_frame_at_10_percent: f64,
+    /// Whether every moving frame drew as many levels as the most any
+    /// frame drew.
+    pub every_level_drawn: bool,
+}
+
+/// The budget over `frames` ([`UpdateBudget`]): the moving frames after
+/// the first, where samples were decoded; `None` where none were.
+fn update_budget(frames: &[FlyFrame]) -> Option<UpdateBudget> {
+    let moving: Vec<&FlyFrame> = frames
+        .iter()
+        .filter(|f| f.frame > 0 && f.texels_moved > 0.0)
+        .collect();
+    let samples: u64 = moving.iter().map(|f| f.pyramid_samples).sum();
+    let update_ms: f64 = moving
+        .iter()
+        .filter(|f| f.pyramid_samples > 0)
+        .map(|f| f.update_ms)
+        .sum();
+    let texels: f64 = moving.iter().map(|f| f.texels_moved).sum();
+    if samples == 0 || update_ms <= 0.0 || texels <= 0.0 {
+        return None;
+    }
+    let mut ms: Vec<f64> = moving.iter().map(|f| f.ms).collect();
+    ms.sort_by(f64::total_cmp);
+    let frame_ms = ms[ms.len() / 2];
+    let samples_per_ms = samples as f64 / update_ms;
+    let samples_per_texel = samples as f64 / texels;
+    let texels_per_frame = frame_ms * samples_per_ms / samples_per_texel;
+    let most = frames.iter().map(|f| f.levels_drawn).max().unwrap_or(0);
+    Some(UpdateBudget {
+        samples_per_ms,
+        samples_per_texel,
+        frame_ms,
+        texels_per_frame,
+        texels_per_frame_at_10_percent: texels_per_frame * 0.1,
+        every_level_drawn: moving.iter().all(|f| f.levels_drawn == most),
+    })
 }
 
 /// Flies `frames` frames from the scene's camera, `step` metres per frame
@@ -108,8 +176,16 @@ pub fn fly(
             prev = Some((img, reference));
             continue;
         }
+        let texels_moved = match i.checked_sub(1).and_then(|j| cams.get(j)) {
+            Some(p) if p.eye != cam.eye => {
+                let d = cam.eye - p.eye;
+                (d.x / session.world.cell[0]).hypot(d.y / session.world.cell[1])
+            }
+            _ => 0.0,
+        };
         out.push(FlyFrame {
             frame: i,
+            texels_moved,
             ms: stats.ms_total,
             update_ms: stats.pass_ms(&["lod"]),
             mesh_ms: stats.pass_ms(&["mesh"]),
@@ -146,6 +222,7 @@ fn summary(
         .try_fold(0u64, |a, f| a.checked_add(f.texels_updated))
         .ok_or("texels rewritten past the largest whole number")?;
     Ok(FlyReport {
+        update_budget: update_budget(&frames),
         lod,
         mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
         texels_updated,
@@ -263,10 +340,62 @@ mod tests {
                 levels_drawn: 1,
                 pyramid_samples: 0,
                 pyramid_tiles: 0,
+                texels_moved: 0.0,
                 popping: 0.0,
             })
             .collect();
         summary("clipmap".into(), frames, 0).unwrap()
+    }
+
+    /// Frames 1–4 move 10 texels each and decode 20,000 samples in 4 ms
+    /// of update (5,000 a ms, 2,000 a texel); the median moving frame (of
+    /// 40, 50, 55, 60, the upper one) is 55 ms, so 55 × 5,000 / 2,000 =
+    /// 137.5 texels a frame, 13.75 at 10 %.
+    /// Frame 0 (the build) and the still frame 5 do not count.
+    #[test]
+    fn the_update_budget_is_the_flights_own_rate_over_its_frame() {
+        let f =
+            |frame: usize, ms: f64, update_ms: f64, samples: u64, moved: f64, levels| FlyFrame {
+                frame,
+                ms,
+                update_ms,
+                mesh_ms: 0.0,
+                texels_updated: 0,
+                changes: 0,
+                triangles: 0,
+                levels_drawn: levels,
+                pyramid_samples: samples,
+                pyramid_tiles: 0,
+                texels_moved: moved,
+                popping: 0.0,
+            };
+        let mut run = vec![
+            f(0, 900.0, 800.0, 9_000_000, 0.0, 10),
+            f(1, 40.0, 4.0, 20_000, 10.0, 10),
+            f(2, 50.0, 4.0, 20_000, 10.0, 10),
+            f(3, 60.0, 4.0, 20_000, 10.0, 10),
+            f(4, 55.0, 4.0, 20_000, 10.0, 10),
+            f(5, 10.0, 0.0, 0, 0.0, 10),
+        ];
+        let b = summary("clipmap".into(), run.clone(), 0)
+            .unwrap()
+            .update_budget
+            .unwrap();
+        assert_eq!(
+            b,
+            UpdateBudget {
+                samples_per_ms: 5_000.0,
+                samples_per_texel: 2_000.0,
+                frame_ms: 55.0,
+                texels_per_frame: 137.5,
+                texels_per_frame_at_10_percent: 13.75,
+                every_level_drawn: true,
+            }
+        );
+        run[3].levels_drawn = 8;
+        let b = summary("clipmap".into(), run, 0).unwrap();
+        assert!(!b.update_budget.unwrap().every_level_drawn);
+        assert_eq!(frames(0..3, 1).update_budget, None);
     }
 
     #[test]
