@@ -133,11 +133,10 @@ fn the_f32_sidecar_carries_the_place_through_another_pack() {
     assert_eq!(back.data(), src.data());
 }
 
-/// A pack whose header's place does not add up is refused, naming the
-/// file and the field, before a sample is written.
-#[test]
-fn a_pack_with_a_broken_place_is_refused() {
-    let pack = tmp("broken.tcz");
+/// The geographic fixture packed losslessly in 16² tiles to `name`, taken
+/// apart to have its header edited.
+fn placed_pack(name: &str) -> common::packs::Parts {
+    let pack = tmp(name);
     run(&[
         "pack",
         GEOGRAPHIC,
@@ -146,7 +145,14 @@ fn a_pack_with_a_broken_place_is_refused() {
         "--tile",
         "16",
     ]);
-    let parts = common::packs::Parts::of(&std::fs::read(&pack).unwrap());
+    common::packs::Parts::of(&std::fs::read(&pack).unwrap())
+}
+
+/// A pack whose header's place does not add up is refused, naming the
+/// file and the field, before a sample is written.
+#[test]
+fn a_pack_with_a_broken_place_is_refused() {
+    let parts = placed_pack("broken.tcz");
     let header = parts.header();
     assert_eq!(header["place"]["nodata"], -32768.0, "{header}");
     let cases: [(&str, serde_json::Value, &str); 4] = [
@@ -269,16 +275,7 @@ fn gdal_places_unpacked_maps_where_the_input_was() {
 #[test]
 fn mutated_places_load_or_name_the_file() {
     use common::fuzz::{edit_json, Rng};
-    let pack = tmp("fuzz-seed.tcz");
-    run(&[
-        "pack",
-        GEOGRAPHIC,
-        "-o",
-        pack.to_str().unwrap(),
-        "--tile",
-        "16",
-    ]);
-    let parts = common::packs::Parts::of(&std::fs::read(&pack).unwrap());
+    let parts = placed_pack("fuzz-seed.tcz");
     let header = parts.header();
     let mut rng = Rng(0x9E0_7EF5_0001);
     let case = tmp("fuzz-case.tcz");
