@@ -75,8 +75,16 @@ fn untimed(json: &str) -> serde_json::Value {
                 o.retain(|k, _| {
                     !(k.ends_with("ms")
                         || k.starts_with("ms_")
-                        || ["peak_rss_bytes", "pareto", "budget_ms", "best_in_budget"]
-                            .contains(&k.as_str()))
+                        || [
+                            "peak_rss_bytes",
+                            "pareto",
+                            "budget_ms",
+                            "best_in_budget",
+                            // A flight's budget, worked out from its timings.
+                            "texels_per_frame",
+                            "texels_per_frame_at_10_percent",
+                        ]
+                        .contains(&k.as_str()))
                 });
                 o.values_mut().for_each(strip);
             }
