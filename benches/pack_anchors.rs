@@ -1,5 +1,6 @@
-//! The pack against the strongest peers, side by side in one process on
-//! the same maps and the same pyramid:
+//! The pack, with each of its coders (`ratio`, the default, and `fast`),
+//! against the strongest peers, side by side in one process on the same
+//! maps and the same pyramid:
 //!
 //! - SZ3 (error-bounded lossy compression's state of the art, the `sz3`
 //!   crate's bindings to its C++ library) in absolute-error mode at E;
@@ -28,7 +29,7 @@
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-use terraclip::pack::{Lattice, Packed};
+use terraclip::pack::{Coder, Lattice, Packed, Predictor::Lifting};
 use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
 use terraclip::studies::chart::{Chart, Series};
 use terraclip::terrain::Heightmap;
@@ -226,23 +227,31 @@ fn main() {
                     decode_ms_per_s: dec,
                 })
             };
-            let (enc_s, (packed, _)) =
-                pool.install(|| best(3, || Packed::encode(&src, e, 128, Some(lattice))));
-            let (dec_s, decoded) = pool.install(|| best(3, || packed.decode().unwrap()));
-            let levels: Vec<&[f32]> = src.iter().map(|l| &l.data[..]).collect();
-            let back: Vec<Vec<f32>> = decoded.into_iter().map(|l| l.data).collect();
-            let (max, rms) = errors(&levels, &back);
-            push(
-                "terraclip".into(),
-                "pyramid",
-                (
-                    packed.coded_bytes(),
-                    max,
-                    rms,
-                    n0 / enc_s / 1e6,
-                    n0 / dec_s / 1e6,
-                ),
-            );
+            for coder in [Coder::Ratio, Coder::Fast] {
+                let (enc_s, (packed, _)) = pool.install(|| {
+                    best(3, || {
+                        Packed::encode_coded(&src, e, 128, Some(lattice), Lifting, coder)
+                    })
+                });
+                let (dec_s, decoded) = pool.install(|| best(3, || packed.decode().unwrap()));
+                let levels: Vec<&[f32]> = src.iter().map(|l| &l.data[..]).collect();
+                let back: Vec<Vec<f32>> = decoded.into_iter().map(|l| l.data).collect();
+                let (max, rms) = errors(&levels, &back);
+                push(
+                    match coder {
+                        Coder::Ratio => "terraclip".into(),
+                        Coder::Fast => "terraclip fast".into(),
+                    },
+                    "pyramid",
+                    (
+                        packed.coded_bytes(),
+                        max,
+                        rms,
+                        n0 / enc_s / 1e6,
+                        n0 / dec_s / 1e6,
+                    ),
+                );
+            }
             for peer in &PEERS {
                 if !peer.name.starts_with("zstd") {
                     push(peer.name.into(), "pyramid", peer_row(peer, &all, e, n0));

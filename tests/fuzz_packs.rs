@@ -8,7 +8,8 @@
 //! overwritten (the index has no checksum of its own).
 //!
 //! Seeds: lossy packs with each predictor, lossless packs on a lattice and
-//! as bit patterns, and a pack with mixed and all-no-data tiles.
+//! as bit patterns, and a pack with mixed and all-no-data tiles, with the
+//! ratio coder; the lossy and no-data ones again with the fast coder.
 //!
 //! Every case must load (finite, equal whole and tile by tile) or be an
 //! error naming the file, never a panic; one case in 25 also goes through
@@ -26,7 +27,9 @@ use common::packs::{pack_once, Parts};
 use std::panic::catch_unwind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use terraclip::pack::{file, Lattice, Packed, Predictor};
+use terraclip::pack::Coder::{Fast, Ratio};
+use terraclip::pack::Predictor::{Lifting, Upsampled};
+use terraclip::pack::{file, Coder, Lattice, Packed, Predictor};
 use terraclip::pyramid::{Pyramid, PyramidLevel};
 use terraclip::terrain::Heightmap;
 
@@ -37,9 +40,9 @@ fn dir() -> PathBuf {
 }
 
 /// The pack of `map` at `e` in 16² tiles.
-fn pack(d: &Path, map: &Heightmap, e: f64, predictor: Predictor) -> Parts {
+fn pack(d: &Path, map: &Heightmap, e: f64, predictor: Predictor, coder: Coder) -> Parts {
     let levels = Pyramid::build(map, Default::default(), 64).levels;
-    let (packed, _) = Packed::encode_with(&levels, e, 16, map.lattice, predictor);
+    let (packed, _) = Packed::encode_coded(&levels, e, 16, map.lattice, predictor, coder);
     let p = d.join("seed.tcz");
     file::write(&p, &packed, map.cell_size, "sinc-blackman:11", "seed").unwrap();
     Parts::of(&std::fs::read(&p).unwrap())
@@ -74,11 +77,14 @@ fn seeds(d: &Path) -> Vec<(&'static str, Parts)> {
         .collect();
     let holes = Heightmap::from_values(48, 40, holes, None, [10.0; 2], "test").unwrap();
     vec![
-        ("lifting", pack(d, &map, 1.0, Predictor::Lifting)),
-        ("upsampled", pack(d, &map, 1.0, Predictor::Upsampled)),
-        ("lattice", pack(d, &lattice, 0.0, Predictor::Lifting)),
-        ("bits", pack(d, &map, 0.0, Predictor::Lifting)),
-        ("no-data", pack(d, &holes, 0.5, Predictor::Lifting)),
+        ("lifting", pack(d, &map, 1.0, Lifting, Ratio)),
+        ("upsampled", pack(d, &map, 1.0, Upsampled, Ratio)),
+        ("lattice", pack(d, &lattice, 0.0, Lifting, Ratio)),
+        ("bits", pack(d, &map, 0.0, Lifting, Ratio)),
+        ("no-data", pack(d, &holes, 0.5, Lifting, Ratio)),
+        ("fast lifting", pack(d, &map, 1.0, Lifting, Fast)),
+        ("fast upsampled", pack(d, &map, 1.0, Upsampled, Fast)),
+        ("fast no-data", pack(d, &holes, 0.5, Lifting, Fast)),
     ]
 }
 
@@ -165,12 +171,15 @@ const CASES: usize = 1000;
 
 /// Per seed: cases reaching the header, the index, the first tile, the
 /// first predicted level, and loading whole.
-const EXPECTED: [(&str, [usize; 5]); 5] = [
+const EXPECTED: [(&str, [usize; 5]); 8] = [
     ("lifting", [663, 566, 429, 321, 33]),
     ("upsampled", [691, 565, 430, 334, 36]),
     ("lattice", [663, 565, 454, 348, 64]),
     ("bits", [683, 579, 446, 350, 62]),
     ("no-data", [665, 567, 450, 361, 31]),
+    ("fast lifting", [666, 569, 444, 347, 50]),
+    ("fast upsampled", [687, 592, 445, 353, 84]),
+    ("fast no-data", [654, 553, 432, 352, 48]),
 ];
 
 #[test]
@@ -245,6 +254,6 @@ fn packs_with_their_checksums_made_right_reach_every_stage() {
         failures.len(),
         failures[0]
     );
-    assert_eq!(through_cli, 5 * CASES.div_ceil(25));
+    assert_eq!(through_cli, 8 * CASES.div_ceil(25));
     assert_eq!(got, EXPECTED, "cases reaching each stage, per seed");
 }

@@ -65,18 +65,19 @@ fn pack_info(a: &Args) -> anyhow::Result<()> {
         "width": w, "height": hh, "format": "tcz", "levels": h.levels(),
         "max_error": h.max_error, "tile": h.tile, "bytes": bytes, "tiles": tiles,
         "cell_size": h.cell_size, "cell_size_m": h.cell_size, "filter": h.filter,
-        "source": h.source, "predictor": h.predictor().name(),
+        "source": h.source, "predictor": h.predictor().name(), "coder": h.coder.name(),
         "crs": h.place.as_ref().and_then(|p| p.epsg()).map(|c| format!("EPSG:{c}")),
         "geotransform": h.place.as_ref().map(|p| p.geotransform()),
         "nodata": h.place.as_ref().and_then(|p| p.nodata),
     });
     super::report(a.json, v, || {
         format!(
-            "{}: pack of {w}×{hh}, {} levels, max error {} m ({} prediction), {tiles} tiles of {}², {bytes} bytes, from {}{}",
+            "{}: pack of {w}×{hh}, {} levels, max error {} m ({} prediction, {} coder), {tiles} tiles of {}², {bytes} bytes, from {}{}",
             a.heightmap.display(),
             h.levels(),
             h.max_error,
             h.predictor().name(),
+            h.coder.name(),
             h.tile,
             h.source,
             match &h.place {

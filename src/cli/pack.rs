@@ -4,7 +4,7 @@
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
-use terraclip::pack::{stream, Predictor};
+use terraclip::pack::{stream, Coder, Predictor};
 use terraclip::pyramid::Filter;
 use terraclip::scene::Scene;
 use terraclip::terrain::rows::{self, RowSource};
@@ -29,6 +29,12 @@ pub struct Args {
     /// uploaded residuals; needs --max-error > 0).
     #[arg(long, default_value = "lifting", value_parser = parse_predictor)]
     pub predictor: Predictor,
+    /// The tiles' entropy stage: `ratio` (ANS under per-context models,
+    /// the smaller pack) or `fast` (pcodec, which decodes several times
+    /// faster for a larger pack). Both code the same residuals to the same
+    /// bound.
+    #[arg(long, default_value = "ratio", value_parser = parse_coder)]
+    pub coder: Coder,
     /// Tile side in samples (even, 2..=4096).
     #[arg(long, default_value_t = 128)]
     pub tile: usize,
@@ -47,6 +53,10 @@ pub struct Args {
     pub variable: Option<String>,
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_coder(s: &str) -> Result<Coder, String> {
+    Coder::parse(s).ok_or_else(|| format!("unknown coder {s:?} (ratio or fast)"))
 }
 
 fn parse_predictor(s: &str) -> Result<Predictor, String> {
@@ -111,6 +121,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let source_name = a.input.display().to_string();
     let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
     opts.predictor = a.predictor;
+    opts.coder = a.coder;
     opts.band_bytes = (a.band_mib * (1 << 20) as f64) as usize;
     let bar = super::progress(0, "pack");
     let summary = stream::pack(src.as_ref(), &a.out, &opts, &mut |done, total| {
@@ -131,6 +142,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "levels": levels, "max_error": a.max_error,
         "max_error_seen": worst, "tile": a.tile, "bytes": bytes,
         "predictor": a.predictor.name(),
+        "coder": a.coder.name(),
         "ratio": ratio, "ms": ms,
         "peak_rss_bytes": terraclip::studies::scaling::peak_rss(),
     });

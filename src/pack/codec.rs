@@ -23,6 +23,7 @@
 //! decoder computes a whole phase's predictions and contexts before
 //! entropy-decoding it (`pack::predict`).
 
+use super::fast;
 use super::model::{self, ESCAPE, K, SCALES};
 use super::predict::{self, Coarse, Planes};
 use crate::pyramid::{PyramidLevel, Rows};
@@ -95,6 +96,45 @@ impl Predictor {
         [Predictor::Lifting, Predictor::Upsampled]
             .into_iter()
             .find(|p| p.name() == name)
+    }
+}
+
+/// The entropy stage a pack's tiles are coded with; the header names it.
+/// Both code the same residual symbols (the same prediction, quantisation
+/// and escapes), so a pack's heights do not depend on its coder.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Coder {
+    /// constriction's ANS under a model chosen per context (phase ×
+    /// roughness): the smaller pack.
+    #[default]
+    Ratio,
+    /// pcodec (the `pco` crate) on each tile's symbols in coding order,
+    /// with no contexts: bins of residuals decode at hundreds of M
+    /// numbers/s, where ANS decodes one symbol at a time.
+    Fast,
+}
+
+impl Coder {
+    /// Its name on the command line, in reports and in the header.
+    pub fn name(self) -> &'static str {
+        match self {
+            Coder::Ratio => "ratio",
+            Coder::Fast => "fast",
+        }
+    }
+
+    /// The coder called `name`.
+    pub fn parse(name: &str) -> Option<Coder> {
+        [Coder::Ratio, Coder::Fast]
+            .into_iter()
+            .find(|c| c.name() == name)
+    }
+
+    /// Whether this is the default coder (which the header leaves unnamed,
+    /// so packs made before there was a choice read as before).
+    pub fn is_default(&self) -> bool {
+        *self == Coder::Ratio
     }
 }
 
@@ -246,6 +286,8 @@ pub struct PackedLevel {
 pub struct Packed {
     /// Tile side in samples.
     pub tile: usize,
+    /// The tiles' entropy stage.
+    pub coder: Coder,
     /// The bound the pyramid was coded to; 0 is lossless.
     pub max_error: f64,
     /// The levels, finest first.
@@ -285,7 +327,7 @@ pub struct Tile {
 }
 
 /// Tile flags: the tile's no-data mask is mixed (coded), or all no-data.
-const MIXED: u8 = 1;
+pub(crate) const MIXED: u8 = 1;
 const ALL_NODATA: u8 = 2;
 /// Activity classes per phase: a sample's model is chosen by its phase and
 /// by how rough the decoded samples its prediction came from are.
@@ -479,6 +521,7 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
     src: Rows,
     coarse: Option<&C>,
     quant: Quant,
+    coder: Coder,
     rect: (usize, usize, usize, usize),
 ) -> (Vec<u8>, Vec<f32>) {
     let (x0, y0, w, h) = rect;
@@ -550,11 +593,6 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             planes.interleave()
         }
     };
-    let mut counts = vec![vec![0u64; model::SYMBOLS]; CONTEXTS];
-    for (&c, &s) in ctx.iter().zip(&sym) {
-        counts[c][s] += 1;
-    }
-    let best = cheapest(&counts);
     let nodata: Vec<bool> = (0..n)
         .map(|i| src.nodata[src.index(x0 + i % w, y0 + i / w)])
         .collect();
@@ -566,6 +604,14 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
     } else {
         MIXED
     };
+    if coder == Coder::Fast {
+        return (fast::encode(flags, count, &nodata, &side, &sym), rec);
+    }
+    let mut counts = vec![vec![0u64; model::SYMBOLS]; CONTEXTS];
+    for (&c, &s) in ctx.iter().zip(&sym) {
+        counts[c][s] += 1;
+    }
+    let best = cheapest(&counts);
     // ANS is a stack: push in the reverse of the decoding order (the mask
     // on the first stream, then the samples in coding order, sample k of
     // each phase on stream k mod 2).
@@ -618,6 +664,7 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
     bytes: &[u8],
     coarse: Option<&C>,
     quant: Quant,
+    coder: Coder,
     range: [f32; 2],
     rect: (usize, usize, usize, usize),
 ) -> Result<(Vec<f32>, Vec<bool>), String> {
@@ -633,6 +680,7 @@ pub(crate) fn decode_tile<C: Coarse + ?Sized>(
         bytes,
         coarse,
         quant,
+        coder,
         range,
         rect,
         &mut Scratch::default(),
@@ -675,6 +723,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     bytes: &[u8],
     coarse: Option<&C>,
     quant: Quant,
+    coder: Coder,
     [lo, hi]: [f32; 2],
     rect: (usize, usize, usize, usize),
     scratch: &mut Scratch,
@@ -682,6 +731,228 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
 ) -> Result<(), String> {
     let (x0, y0, w, h) = rect;
     let n = w * h;
+    let Scratch {
+        planes,
+        pred,
+        act,
+        class,
+        phases,
+        models: mk,
+        sym,
+        words,
+    } = scratch;
+    let TileOut {
+        data,
+        nodata,
+        stride,
+        x0: ox,
+    } = out;
+    let place = |i: usize| (i / w) * stride + ox + i % w;
+    // The no-data mask is read first (by both coders), then the side
+    // stream and the symbols' entropy stage are kept for the phases.
+    let (side, mut stage) = match coder {
+        Coder::Ratio => ratio_stage(bytes, n, words, |i, b| nodata[place(i)] = b)?,
+        Coder::Fast => {
+            let p = fast::parts(bytes, n)?;
+            check_mask(p.flags, p.count, n)?;
+            if p.flags == MIXED {
+                let seen = fast::unmask(p.mask, n, |i, b| nodata[place(i)] = b);
+                if seen != p.count {
+                    return Err(format!(
+                        "no-data mask holds {seen} samples, the header says {}",
+                        p.count
+                    ));
+                }
+            }
+            fast::symbols(p.coded, n, sym)?;
+            (p.side, Stage::Fast { at: 0 })
+        }
+    };
+    // Both coders' tiles start with the flags, which the stage checked.
+    let flags = bytes[0];
+    if flags != MIXED {
+        for r in 0..h {
+            nodata[r * stride + ox..][..w].fill(flags == ALL_NODATA);
+        }
+    }
+    let broken = |what: &str| format!("coded stream broken in the {what}");
+    let mut at = 0usize;
+    // Sample `s` decoded against prediction `p`.
+    let mut value = |s: usize, p: f64| -> Result<f32, String> {
+        if s != ESCAPE {
+            return Ok(quant.rec(p, s as i64 - K));
+        }
+        let v = get_varint(side, &mut at).ok_or_else(|| broken("side stream"))?;
+        Ok(if v == 1 {
+            let b = side.get(at..at + 4).ok_or_else(|| broken("side stream"))?;
+            at += 4;
+            f32::from_bits(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        } else {
+            quant.rec(p, unzigzag(v >> 1))
+        })
+    };
+    match coarse {
+        None => {
+            // One context: the symbols first, then the serial prediction.
+            let sym = stage
+                .next(n, sym, mk, |best, mk| {
+                    mk.clear();
+                    mk.resize(n, best[0]);
+                })
+                .map_err(|_| broken("residuals"))?;
+            let mut rec = vec![0f32; n];
+            for (i, &s) in sym.iter().enumerate() {
+                let p = predict_top(&rec, w, i % w, i / w);
+                rec[i] = value(s as usize, p)?;
+            }
+            for r in 0..h {
+                data[r * stride + ox..][..w].copy_from_slice(&rec[r * w..][..w]);
+            }
+        }
+        Some(coarse) if matches!(quant, Quant::Upsampled { .. }) => {
+            predict::upsampled(coarse, rect, pred, act, phases);
+            let t = thresholds(quant.unit(0.0));
+            let sym = stage
+                .next(n, sym, mk, |best, mk| {
+                    mk.clear();
+                    mk.extend(
+                        act.iter()
+                            .zip(&*phases)
+                            .map(|(&a, &ph)| best[context(ph as usize, a, &t)]),
+                    );
+                })
+                .map_err(|_| broken("residuals"))?;
+            // Row by row in straight loops ([`Quant::rec`]'s sum, with its
+            // step, 2E rounded to f32, made once); an escape's value is
+            // filled in after.
+            let step = quant.unit(0.0) as f32;
+            for (r, (sym, pred)) in sym.chunks_exact(w).zip(pred.chunks_exact(w)).enumerate() {
+                let row = &mut data[r * stride + ox..][..w];
+                for ((d, &s), &p) in row.iter_mut().zip(sym).zip(pred.iter()) {
+                    *d = p as f32 + (s as i64 - K) as f32 * step;
+                }
+            }
+            for (i, &s) in sym.iter().enumerate() {
+                if s as usize == ESCAPE {
+                    data[place(i)] = value(ESCAPE, pred[i])?;
+                }
+            }
+        }
+        Some(coarse) => {
+            planes.reset(w, h);
+            for ph in 0..4 {
+                predict::phase(ph, planes, coarse, (x0, y0), pred, act);
+                let sym = stage
+                    .next(pred.len(), sym, mk, |best, mk| {
+                        models_of(ph, pred, act, quant, best, class, mk)
+                    })
+                    .map_err(|_| broken("residuals"))?;
+                let pred = &*pred;
+                let plane = &mut planes.planes[ph];
+                // An escape's value is filled in below; what this writes there is overwritten.
+                for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
+                    *r = quant.rec(p, s as i64 - K);
+                }
+                // Escapes, in coding order, from the side stream.
+                for (i, &s) in sym.iter().enumerate() {
+                    if s as usize == ESCAPE {
+                        plane[i] = value(ESCAPE, pred[i])?;
+                    }
+                }
+            }
+            planes.interleave_into(data, stride, ox);
+        }
+    }
+    if at != side.len() {
+        return Err(format!("{} side-stream bytes left over", side.len() - at));
+    }
+    if let Stage::Ans { ans, .. } = &stage {
+        if ans.iter().any(|a| !a.is_empty()) {
+            return Err("coded words left over".into());
+        }
+    }
+    for r in 0..h {
+        let row = r * stride + ox..r * stride + ox + w;
+        let bad = data[row.clone()]
+            .iter()
+            .zip(&nodata[row])
+            .position(|(&v, &nd)| !nd && !(lo..=hi).contains(&v));
+        if let Some(i) = bad {
+            return Err(format!(
+                "sample ({}, {}) decodes to {}, outside the level's range [{lo}, {hi}]",
+                x0 + i,
+                y0 + r,
+                data[r * stride + ox + i]
+            ));
+        }
+    }
+    // The emptied streams' buffers, for the next tile.
+    if let Stage::Ans { ans, .. } = stage {
+        *words = ans.map(|a| a.into_compressed().unwrap_or_default());
+    }
+    Ok(())
+}
+
+/// Where a tile's symbols come from while its phases are decoded.
+enum Stage {
+    /// The ratio coder's two ANS streams and each context's model.
+    Ans {
+        ans: Box<[DefaultAnsCoder; STREAMS]>,
+        best: [u8; CONTEXTS],
+    },
+    /// The fast coder's symbols, all decoded already: the next phase's
+    /// start.
+    Fast { at: usize },
+}
+
+impl Stage {
+    /// The next `len` symbols. The ratio coder decodes them into `sym`
+    /// under the models `models` writes to `mk` from each context's model;
+    /// the fast coder's are the next `len` of `sym`.
+    fn next<'s>(
+        &mut self,
+        len: usize,
+        sym: &'s mut Vec<u16>,
+        mk: &mut Vec<u8>,
+        models: impl FnOnce(&[u8; CONTEXTS], &mut Vec<u8>),
+    ) -> Result<&'s [u16], ()> {
+        match self {
+            Stage::Ans { ans, best } => {
+                models(best, mk);
+                decode_symbols(ans, mk, sym)?;
+                Ok(&sym[..])
+            }
+            Stage::Fast { at } => {
+                let s = sym.get(*at..*at + len).ok_or(())?;
+                *at += len;
+                Ok(s)
+            }
+        }
+    }
+}
+
+/// Whether a no-data `count` fits `n` samples and the tile's `flags`.
+fn check_mask(flags: u8, count: u32, n: usize) -> Result<(), String> {
+    if flags > ALL_NODATA {
+        return Err(format!("unknown flags {flags:#x}"));
+    }
+    if count as usize > n || (flags == MIXED) != (count > 0 && (count as usize) < n) {
+        return Err(format!(
+            "no-data count {count} does not fit {n} samples and flags {flags:#x}"
+        ));
+    }
+    Ok(())
+}
+
+/// The ratio coder's tile header read and checked, its no-data mask
+/// decoded (each flag given to `put` with its index), and its side
+/// stream and ANS streams (made from `words`' buffers).
+fn ratio_stage<'b>(
+    bytes: &'b [u8],
+    n: usize,
+    words: &mut [Vec<u32>; STREAMS],
+    mut put: impl FnMut(usize, bool),
+) -> Result<(&'b [u8], Stage), String> {
     if bytes.len() < HEADER {
         return Err(format!(
             "{} bytes, shorter than the {HEADER}-byte header",
@@ -689,15 +960,13 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
         ));
     }
     let flags = bytes[0];
-    if flags > ALL_NODATA {
-        return Err(format!("unknown flags {flags:#x}"));
-    }
     let le =
         |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let side_len = le(1) as usize;
     let count = le(5);
     let first = le(9) as usize;
     let used = le(13);
+    check_mask(flags, count, n)?;
     let listed = used.count_ones() as usize;
     if bytes.len() < HEADER + listed {
         return Err(format!(
@@ -724,11 +993,6 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
             rest.len()
         ));
     }
-    if count as usize > n || (flags == MIXED) != (count > 0 && (count as usize) < n) {
-        return Err(format!(
-            "no-data count {count} does not fit {n} samples and flags {flags:#x}"
-        ));
-    }
     let side = &rest[..side_len];
     let coded = &rest[side_len..];
     let total = coded.len() / 4;
@@ -737,16 +1001,6 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
             "first stream of {first} words does not fit the tile's {total}"
         ));
     }
-    let Scratch {
-        planes,
-        pred,
-        act,
-        class,
-        phases,
-        models: mk,
-        sym,
-        words,
-    } = scratch;
     let [wa, wb] = std::mem::take(words);
     let stream = |mut buf: Vec<u32>, bytes: &[u8]| {
         buf.clear();
@@ -758,136 +1012,20 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
         DefaultAnsCoder::from_compressed(buf)
             .map_err(|_| "a coded stream ends in a zero word".to_string())
     };
-    let mut ans = [
+    let mut ans = Box::new([
         stream(wa, &coded[..4 * first])?,
         stream(wb, &coded[4 * first..])?,
-    ];
-    let broken = |what: &str| format!("coded stream broken in the {what}");
-    let TileOut {
-        data,
-        nodata,
-        stride,
-        x0: ox,
-    } = out;
-    let place = |i: usize| (i / w) * stride + ox + i % w;
-    match flags {
-        MIXED => {
-            let mm = mask_model(count, n);
-            for i in 0..n {
-                nodata[place(i)] = ans[0]
-                    .decode_symbol(&mm)
-                    .map_err(|_| broken("no-data mask"))?
-                    == 1;
-            }
-        }
-        _ => {
-            for r in 0..h {
-                nodata[r * stride + ox..][..w].fill(flags == ALL_NODATA);
-            }
+    ]);
+    if flags == MIXED {
+        let mm = mask_model(count, n);
+        for i in 0..n {
+            let b = ans[0]
+                .decode_symbol(&mm)
+                .map_err(|_| "coded stream broken in the no-data mask".to_string())?;
+            put(i, b == 1);
         }
     }
-    let mut at = 0usize;
-    // Sample `s` decoded against prediction `p`.
-    let mut value = |s: usize, p: f64| -> Result<f32, String> {
-        if s != ESCAPE {
-            return Ok(quant.rec(p, s as i64 - K));
-        }
-        let v = get_varint(side, &mut at).ok_or_else(|| broken("side stream"))?;
-        Ok(if v == 1 {
-            let b = side.get(at..at + 4).ok_or_else(|| broken("side stream"))?;
-            at += 4;
-            f32::from_bits(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        } else {
-            quant.rec(p, unzigzag(v >> 1))
-        })
-    };
-    match coarse {
-        None => {
-            // One context: the symbols first, then the serial prediction.
-            mk.clear();
-            mk.resize(n, best[0]);
-            decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
-            let mut rec = vec![0f32; n];
-            for (i, &s) in sym.iter().enumerate() {
-                let p = predict_top(&rec, w, i % w, i / w);
-                rec[i] = value(s as usize, p)?;
-            }
-            for r in 0..h {
-                data[r * stride + ox..][..w].copy_from_slice(&rec[r * w..][..w]);
-            }
-        }
-        Some(coarse) if matches!(quant, Quant::Upsampled { .. }) => {
-            predict::upsampled(coarse, rect, pred, act, phases);
-            let t = thresholds(quant.unit(0.0));
-            mk.clear();
-            mk.extend(
-                act.iter()
-                    .zip(&*phases)
-                    .map(|(&a, &ph)| best[context(ph as usize, a, &t)]),
-            );
-            decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
-            // Row by row in straight loops ([`Quant::rec`]'s sum, with its
-            // step, 2E rounded to f32, made once); an escape's value is
-            // filled in after.
-            let step = quant.unit(0.0) as f32;
-            for (r, (sym, pred)) in sym.chunks_exact(w).zip(pred.chunks_exact(w)).enumerate() {
-                let row = &mut data[r * stride + ox..][..w];
-                for ((d, &s), &p) in row.iter_mut().zip(sym).zip(pred) {
-                    *d = p as f32 + (s as i64 - K) as f32 * step;
-                }
-            }
-            for (i, &s) in sym.iter().enumerate() {
-                if s as usize == ESCAPE {
-                    data[place(i)] = value(ESCAPE, pred[i])?;
-                }
-            }
-        }
-        Some(coarse) => {
-            planes.reset(w, h);
-            for ph in 0..4 {
-                predict::phase(ph, planes, coarse, (x0, y0), pred, act);
-                models_of(ph, pred, act, quant, &best, class, mk);
-                decode_symbols(&mut ans, mk, sym).map_err(|_| broken("residuals"))?;
-                let (sym, pred) = (&*sym, &*pred);
-                let plane = &mut planes.planes[ph];
-                // An escape's value is filled in below; what this writes there is overwritten.
-                for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
-                    *r = quant.rec(p, s as i64 - K);
-                }
-                // Escapes, in coding order, from the side stream.
-                for (i, &s) in sym.iter().enumerate() {
-                    if s as usize == ESCAPE {
-                        plane[i] = value(ESCAPE, pred[i])?;
-                    }
-                }
-            }
-            planes.interleave_into(data, stride, ox);
-        }
-    }
-    if at != side.len() {
-        return Err(format!("{} side-stream bytes left over", side.len() - at));
-    }
-    if ans.iter().any(|a| !a.is_empty()) {
-        return Err("coded words left over".into());
-    }
-    for r in 0..h {
-        let row = r * stride + ox..r * stride + ox + w;
-        let bad = data[row.clone()]
-            .iter()
-            .zip(&nodata[row])
-            .position(|(&v, &nd)| !nd && !(lo..=hi).contains(&v));
-        if let Some(i) = bad {
-            return Err(format!(
-                "sample ({}, {}) decodes to {}, outside the level's range [{lo}, {hi}]",
-                x0 + i,
-                y0 + r,
-                data[r * stride + ox + i]
-            ));
-        }
-    }
-    // The emptied streams' buffers, for the next tile.
-    *words = ans.map(|a| a.into_compressed().unwrap_or_default());
-    Ok(())
+    Ok((side, Stage::Ans { ans, best }))
 }
 
 /// The quantisation of a level: bounded error when `max_error` > 0;
@@ -942,14 +1080,26 @@ impl Packed {
         Self::encode_with(levels, max_error, tile, lattice, Predictor::Lifting)
     }
 
-    /// [`Packed::encode`] with the finer levels predicted by `predictor`
-    /// (lifting where `max_error` is 0).
+    /// [`Packed::encode_coded`] with the ratio coder.
     pub fn encode_with(
         levels: &[PyramidLevel],
         max_error: f64,
         tile: usize,
         lattice: Option<Lattice>,
         predictor: Predictor,
+    ) -> (Packed, Vec<PyramidLevel>) {
+        Self::encode_coded(levels, max_error, tile, lattice, predictor, Coder::Ratio)
+    }
+
+    /// [`Packed::encode`] with the finer levels predicted by `predictor`
+    /// (lifting where `max_error` is 0) and the tiles coded by `coder`.
+    pub fn encode_coded(
+        levels: &[PyramidLevel],
+        max_error: f64,
+        tile: usize,
+        lattice: Option<Lattice>,
+        predictor: Predictor,
+        coder: Coder,
     ) -> (Packed, Vec<PyramidLevel>) {
         // Even, so a tile's local parity is the level's.
         let tile = tile.max(2).next_multiple_of(2);
@@ -964,7 +1114,7 @@ impl Packed {
                 .into_par_iter()
                 .map(|t| {
                     let rect = tile_rect(src.width, src.height, tile, t % tx, t / tx);
-                    encode_tile(src.rows(), coarse, quant, rect)
+                    encode_tile(src.rows(), coarse, quant, coder, rect)
                 })
                 .collect();
             let mut data = vec![0f32; src.width * src.height];
@@ -991,6 +1141,7 @@ impl Packed {
         (
             Packed {
                 tile,
+                coder,
                 max_error,
                 levels: packed,
             },
@@ -1025,8 +1176,15 @@ impl Packed {
         let rect = tile_rect(lv.width, lv.height, self.tile, tx, ty);
         let top = l + 1 == self.levels.len();
         let c = (!top).then_some(coarse);
-        let (data, nodata) =
-            decode_tile(&lv.tiles[ty * nx + tx], c, lv.quant, lv.range, rect).map_err(err)?;
+        let (data, nodata) = decode_tile(
+            &lv.tiles[ty * nx + tx],
+            c,
+            lv.quant,
+            self.coder,
+            lv.range,
+            rect,
+        )
+        .map_err(err)?;
         Ok(Tile {
             rect: [rect.0, rect.1, rect.2, rect.3],
             data,
@@ -1066,12 +1224,22 @@ impl Packed {
                     };
                     let bytes = &lv.tiles[ty * nx + tx];
                     let coarse = (!top).then_some(c);
-                    decode_tile_into(bytes, coarse, lv.quant, lv.range, rect, &mut scratch, out)
-                        .map_err(|reason| TileError {
-                            level: l,
-                            tile: [tx, ty],
-                            reason,
-                        })?;
+                    let q = lv.quant;
+                    decode_tile_into(
+                        bytes,
+                        coarse,
+                        q,
+                        self.coder,
+                        lv.range,
+                        rect,
+                        &mut scratch,
+                        out,
+                    )
+                    .map_err(|reason| TileError {
+                        level: l,
+                        tile: [tx, ty],
+                        reason,
+                    })?;
                 }
                 Ok(())
             })?;

@@ -18,7 +18,7 @@
 //! turns a flipped bit into an error that names the tile instead of wrong
 //! heights.
 
-use super::codec::{Packed, PackedLevel, Quant};
+use super::codec::{Coder, Packed, PackedLevel, Quant};
 use crate::error::{write_atomic, Error, Result};
 use crate::pyramid::{Filter, PyramidLevel};
 use serde::{Deserialize, Serialize};
@@ -56,6 +56,10 @@ pub struct Header {
     pub max_error: f64,
     /// Tile side in samples.
     pub tile: usize,
+    /// The tiles' entropy stage. Absent from ratio-coded packs, so their
+    /// headers are as before there was a choice.
+    #[serde(default, skip_serializing_if = "Coder::is_default")]
+    pub coder: Coder,
     /// What was packed (a file name, or the scene's procedural terrain).
     pub source: String,
     levels: Vec<LevelSpec>,
@@ -126,6 +130,7 @@ impl Header {
             filter: filter.to_string(),
             max_error,
             tile,
+            coder: Coder::Ratio,
             source: source.to_string(),
             levels: levels
                 .into_iter()
@@ -171,7 +176,7 @@ pub fn write(
     filter: &str,
     source: &str,
 ) -> Result<u64> {
-    let header = Header::new(
+    let mut header = Header::new(
         cell_size,
         filter,
         packed.max_error,
@@ -182,6 +187,7 @@ pub fn write(
             .iter()
             .map(|l| (l.width, l.height, l.quant, l.range)),
     );
+    header.coder = packed.coder;
     let tiles: Vec<&Vec<u8>> = packed.levels.iter().flat_map(|l| &l.tiles).collect();
     let index: Vec<(u32, u32)> = tiles
         .iter()
@@ -488,6 +494,7 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
     check_end(end, bytes.len() as u64)?;
     let packed = Packed {
         tile: header.tile,
+        coder: header.coder,
         max_error: header.max_error,
         levels,
     };

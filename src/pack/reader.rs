@@ -156,7 +156,8 @@ impl TileSource for PackReader {
         let [w, h] = self.header.level_size(l);
         let rect = tile_rect(w, h, self.header.tile, tx, ty);
         let c = (l + 1 < self.header.levels()).then_some(coarse);
-        codec::decode_tile(&bytes, c, self.quant[l], self.header.level_range(l), rect)
+        let (q, coder) = (self.quant[l], self.header.coder);
+        codec::decode_tile(&bytes, c, q, coder, self.header.level_range(l), rect)
             .map_err(|r| format!("{}: {r}", name()))
     }
 }

@@ -19,7 +19,7 @@
 //!    temporary file and a rename. The bytes equal [`super::file::write`]'s
 //!    of [`super::Packed::encode`] on the same map (`tests/pack.rs`).
 
-use super::codec::{self, coarse_rows, encode_tile, tile_rect, Predictor, Quant};
+use super::codec::{self, coarse_rows, encode_tile, tile_rect, Coder, Predictor, Quant};
 use super::file::{self, Header};
 use crate::error::{temp_path, write_atomic_with, Error, Result};
 use crate::pyramid::downsample::{self, Block, Scratch};
@@ -49,6 +49,8 @@ pub struct Options {
     pub filter: Filter,
     /// What the finer levels are predicted from.
     pub predictor: Predictor,
+    /// The tiles' entropy stage.
+    pub coder: Coder,
     /// What the header names as the source.
     pub source: String,
     /// About the bytes of samples one band holds ([`BAND_BYTES`]; tests
@@ -64,6 +66,7 @@ impl Options {
             tile,
             filter,
             predictor: Predictor::Lifting,
+            coder: Coder::Ratio,
             source: source.to_string(),
             band_bytes: BAND_BYTES,
         }
@@ -371,7 +374,7 @@ pub fn pack(
                 .map(|t| {
                     let rect = tile_rect(w, h, tile, t % nx, ty0 + t / nx);
                     let c = cview.as_ref();
-                    let (bytes, rec) = encode_tile(view, c, quant, rect);
+                    let (bytes, rec) = encode_tile(view, c, quant, o.coder, rect);
                     let (x0, y0, tw, _) = rect;
                     let err = rec
                         .iter()
@@ -425,6 +428,7 @@ pub fn pack(
         (0..levels).map(|l| (sizes[l][0], sizes[l][1], quants[l], ranges[l])),
     );
     header.place = src.place();
+    header.coder = o.coder;
     let all: Vec<(u32, u32)> = index.iter().flatten().copied().collect();
     let prefix = file::prefix(&header, &all)?;
     let bytes = prefix.len() as u64 + all.iter().map(|t| t.0 as u64).sum::<u64>();
