@@ -728,7 +728,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     rect: (usize, usize, usize, usize),
     scratch: &mut Scratch,
     out: TileOut,
-) -> Result<(), String> {
+) -> Result<(f32, f32), String> {
     let (x0, y0, w, h) = rect;
     let n = w * h;
     let Scratch {
@@ -832,9 +832,11 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                     *d = p as f32 + (s as i64 - K) as f32 * step;
                 }
             }
-            for (i, &s) in sym.iter().enumerate() {
-                if s as usize == ESCAPE {
-                    data[place(i)] = value(ESCAPE, pred[i])?;
+            if any_escape(sym) {
+                for (i, &s) in sym.iter().enumerate() {
+                    if s as usize == ESCAPE {
+                        data[place(i)] = value(ESCAPE, pred[i])?;
+                    }
                 }
             }
         }
@@ -850,13 +852,28 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                 let pred = &*pred;
                 let plane = &mut planes.planes[ph];
                 // An escape's value is filled in below; what this writes there is overwritten.
-                for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
-                    *r = quant.rec(p, s as i64 - K);
+                match quant {
+                    // [`Quant::rec`]'s arithmetic with its step made once,
+                    // so the loop vectorises (the match inside `rec` kept
+                    // it scalar).
+                    Quant::Step { max_error } => {
+                        let step = 2.0 * max_error;
+                        for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
+                            *r = (p + (s as i32 - K as i32) as f64 * step) as f32;
+                        }
+                    }
+                    _ => {
+                        for ((r, &s), &p) in plane.iter_mut().zip(sym).zip(pred) {
+                            *r = quant.rec(p, s as i64 - K);
+                        }
+                    }
                 }
                 // Escapes, in coding order, from the side stream.
-                for (i, &s) in sym.iter().enumerate() {
-                    if s as usize == ESCAPE {
-                        plane[i] = value(ESCAPE, pred[i])?;
+                if any_escape(sym) {
+                    for (i, &s) in sym.iter().enumerate() {
+                        if s as usize == ESCAPE {
+                            plane[i] = value(ESCAPE, pred[i])?;
+                        }
                     }
                 }
             }
@@ -871,26 +888,62 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
             return Err("coded words left over".into());
         }
     }
-    for r in 0..h {
-        let row = r * stride + ox..r * stride + ox + w;
-        let bad = data[row.clone()]
-            .iter()
-            .zip(&nodata[row])
-            .position(|(&v, &nd)| !nd && !(lo..=hi).contains(&v));
-        if let Some(i) = bad {
-            return Err(format!(
-                "sample ({}, {}) decodes to {}, outside the level's range [{lo}, {hi}]",
-                x0 + i,
-                y0 + r,
-                data[r * stride + ox + i]
-            ));
-        }
-    }
+    let extremes = checked_extremes(data, nodata, (stride, ox), rect, [lo, hi])?;
     // The emptied streams' buffers, for the next tile.
     if let Stage::Ans { ans, .. } = stage {
         *words = ans.map(|a| a.into_compressed().unwrap_or_default());
     }
-    Ok(())
+    Ok(extremes)
+}
+
+/// Whether any of `sym` is the escape: a fold with no early exit, so it
+/// vectorises; escapes are rare, and the loop that finds them is then
+/// skipped.
+fn any_escape(sym: &[u16]) -> bool {
+    sym.iter().fold(false, |a, &s| a | (s as usize == ESCAPE))
+}
+
+/// The least and greatest valid sample of a decoded tile ((+∞, −∞) for
+/// none), each checked to lie in `[lo, hi]`, the level's range as the
+/// header gives it (the encoder's own reconstruction's least and greatest
+/// valid sample, so the bounds are exact): a tile whose checksum was made
+/// to match damaged bytes is otherwise free to decode to NaN or to any
+/// height. A row with no no-data is checked by its extremes and a NaN
+/// test, loops that vectorise; only a row that fails is searched for the
+/// sample to name.
+fn checked_extremes(
+    data: &[f32],
+    nodata: &[bool],
+    (stride, ox): (usize, usize),
+    (x0, y0, w, h): (usize, usize, usize, usize),
+    [lo, hi]: [f32; 2],
+) -> Result<(f32, f32), String> {
+    let (mut min, mut max) = (f32::INFINITY, f32::NEG_INFINITY);
+    for r in 0..h {
+        let row = r * stride + ox..r * stride + ox + w;
+        let (d, nd) = (&data[row.clone()], &nodata[row]);
+        let (a, b) = crate::pyramid::range_of(d, nd);
+        let nan = d
+            .iter()
+            .zip(nd)
+            .fold(false, |acc, (&v, &n)| acc | (v.is_nan() & !n));
+        if nan || (a <= b && (a < lo || b > hi)) {
+            let i = d
+                .iter()
+                .zip(nd)
+                .position(|(&v, &n)| !n && !(lo..=hi).contains(&v))
+                .unwrap_or(0);
+            return Err(format!(
+                "sample ({}, {}) decodes to {}, outside the level's range [{lo}, {hi}]",
+                x0 + i,
+                y0 + r,
+                d[i]
+            ));
+        }
+        min = min.min(a);
+        max = max.max(b);
+    }
+    Ok((min, max))
 }
 
 /// Where a tile's symbols come from while its phases are decoded.
@@ -1209,11 +1262,16 @@ impl Packed {
         // is decoded (so its buffers are reused, not held until the end).
         let band = self.tile * lv.width;
         let top = l + 1 == self.levels.len();
-        data.par_chunks_mut(band)
+        // Each row of tiles gives its least and greatest valid height,
+        // found while its samples were in cache.
+        let none = || (f32::INFINITY, f32::NEG_INFINITY);
+        let range = data
+            .par_chunks_mut(band)
             .zip(nodata.par_chunks_mut(band))
             .enumerate()
-            .try_for_each(|(ty, (data, nodata))| {
+            .map(|(ty, (data, nodata))| {
                 let mut scratch = Scratch::default();
+                let mut range = none();
                 for tx in 0..nx {
                     let rect = tile_rect(lv.width, lv.height, self.tile, tx, ty);
                     let out = TileOut {
@@ -1225,7 +1283,7 @@ impl Packed {
                     let bytes = &lv.tiles[ty * nx + tx];
                     let coarse = (!top).then_some(c);
                     let q = lv.quant;
-                    decode_tile_into(
+                    let (lo, hi) = decode_tile_into(
                         bytes,
                         coarse,
                         q,
@@ -1240,10 +1298,14 @@ impl Packed {
                         tile: [tx, ty],
                         reason,
                     })?;
+                    range = (range.0.min(lo), range.1.max(hi));
                 }
-                Ok(())
-            })?;
-        Ok(PyramidLevel::from_parts(lv.width, lv.height, data, nodata))
+                Ok(range)
+            })
+            .try_reduce(none, |a, b| Ok((a.0.min(b.0), a.1.max(b.1))))?;
+        Ok(PyramidLevel::from_parts_ranged(
+            lv.width, lv.height, data, nodata, range,
+        ))
     }
 
     /// Decodes every level, coarse to fine; finest first.
