@@ -169,9 +169,18 @@ pub(crate) fn phase<C: Coarse + ?Sized>(
             let (ci, cj) = ((x0 / 2) as i64 - 1, (y0 / 2) as i64 - 1);
             let last = coarse.width() as i64 - 1;
             let mut win = Vec::with_capacity(cw * ch);
+            // Columns inside the level are read as a straight slice (a
+            // loop that vectorises); only those past its edges are clamped.
+            let inside = ci.max(0)..(ci + cw as i64).min(last + 1);
             for j in 0..ch as i64 {
                 let row = coarse.row(cj + j);
-                win.extend((0..cw as i64).map(|i| row[(ci + i).clamp(0, last) as usize] as f64));
+                let at = |i: i64| row[i.clamp(0, last) as usize] as f64;
+                win.extend((ci..inside.start).map(at));
+                if inside.start < inside.end {
+                    let mid = &row[inside.start as usize..inside.end as usize];
+                    win.extend(mid.iter().map(|&v| v as f64));
+                }
+                win.extend((inside.end.max(inside.start)..ci + cw as i64).map(at));
             }
             for (j, (pred, act)) in out.enumerate() {
                 let (u, m, d) = (&win[j * cw..], &win[(j + 1) * cw..], &win[(j + 2) * cw..]);
