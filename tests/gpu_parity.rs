@@ -194,6 +194,7 @@ fn the_gpu_update_pass_makes_the_cpus_texels() {
 /// residual codes, bit for bit the CPU's on lavapipe over a 100-frame
 /// path; only the coarsest level is uploaded as texels. The same scene
 /// over the lifting pack (`pack-lossy`'s) leaves every level to uploads.
+/// The fast coder's pack of the same levels gives the same figures.
 #[test]
 fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
     use terraclip::pack::{stream, Predictor};
@@ -228,6 +229,33 @@ fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
             (0, 0)
         );
         assert_eq!((made, res.texels_uploaded, bytes), (37_444, 248, 130_060));
+    }
+    // The same pack with the fast coder decodes to the same heights, so the
+    // pass rebuilds its levels with the same codes: the same figures.
+    let fast = out().join("procedural-513-e1-upsampled-fast.tcz");
+    o.coder = terraclip::pack::Coder::Fast;
+    stream::pack(rows.as_ref(), &fast, &o, &mut |_, _| {}).unwrap();
+    scene.terrain.file = Some(fast);
+    let f = parity::check(
+        &mut r,
+        &scene,
+        "pack-upsampled-fast",
+        100,
+        37.0,
+        &out(),
+        exact,
+    )
+    .unwrap();
+    eprintln!("upsampled fast pack, gpu update: {f:?}");
+    assert!(f.pass, "{f:?}");
+    assert_eq!(
+        (f.texels_made, f.texels_uploaded, f.residual_bytes),
+        (res.texels_made, res.texels_uploaded, res.residual_bytes)
+    );
+    if exact {
+        let t = f.texels.expect("texels checked");
+        assert_eq!((t.differ, t.max_ulp), (0, 0));
+        assert_eq!((f.diff.colour_px_differ, f.diff.depth_px_differ), (0, 0));
     }
 }
 
