@@ -62,20 +62,7 @@ fn seeds(d: &Path) -> Vec<(&'static str, Parts)> {
         offset: 100.0,
         scale: 0.5,
     });
-    // 48 × 40: tile (1, 0) all no-data, tile (0, 1) half no-data.
-    let holes: Vec<f32> = (0..48 * 40)
-        .map(|i| {
-            let (x, y) = (i % 48, i / 48);
-            let hole =
-                (16..32).contains(&x) && y < 16 || (x < 16 && (16..32).contains(&y) && x > y - 16);
-            if hole {
-                f32::NAN
-            } else {
-                (x as f32 * 0.7).sin() * 40.0 + y as f32 * 3.0
-            }
-        })
-        .collect();
-    let holes = Heightmap::from_values(48, 40, holes, None, [10.0; 2], "test").unwrap();
+    let holes = common::packs::holes();
     vec![
         ("lifting", pack(d, &map, 1.0, Lifting, Ratio)),
         ("upsampled", pack(d, &map, 1.0, Upsampled, Ratio)),

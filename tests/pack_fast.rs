@@ -16,24 +16,6 @@ fn jacksboro() -> Heightmap {
     Heightmap::load(&dem.join("jacksboro_16.png")).unwrap()
 }
 
-/// A 48 × 40 map with an all-no-data tile and a half-no-data one (at 16²
-/// tiles), so the fast coder's mask is coded and its flags read.
-fn holes() -> Heightmap {
-    let v: Vec<f32> = (0..48 * 40)
-        .map(|i| {
-            let (x, y) = (i % 48, i / 48);
-            let hole =
-                (16..32).contains(&x) && y < 16 || (x < 16 && (16..32).contains(&y) && x > y - 16);
-            if hole {
-                f32::NAN
-            } else {
-                (x as f32 * 0.7).sin() * 40.0 + y as f32 * 3.0
-            }
-        })
-        .collect();
-    Heightmap::from_values(48, 40, v, None, [10.0; 2], "test").unwrap()
-}
-
 fn bits(levels: &[PyramidLevel]) -> Vec<Vec<u32>> {
     levels
         .iter()
@@ -62,7 +44,7 @@ fn worst(source: &[PyramidLevel], decoded: &[PyramidLevel]) -> f64 {
 fn a_fast_pack_decodes_to_the_ratio_packs_heights_within_the_bound() {
     let j = jacksboro();
     let procedural = common::terrain(5, 150, 110);
-    let holes = holes();
+    let holes = common::packs::holes();
     let cases: [(&str, &Heightmap, f64, Predictor, usize); 6] = [
         ("jacksboro lifting E=1", &j, 1.0, Predictor::Lifting, 64),
         ("jacksboro upsampled E=1", &j, 1.0, Predictor::Upsampled, 64),

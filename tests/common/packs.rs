@@ -133,3 +133,21 @@ pub fn mapped_levels(p: &Path) -> terraclip::Result<Vec<terraclip::pyramid::Pyra
     py.decode_window(0, [0, 0, w as i64 - 1, h as i64 - 1])?;
     Ok(py.levels)
 }
+
+/// A 48 × 40 map with, in 16² tiles, tile (1, 0) all no-data and tile
+/// (0, 1) half no-data: packs of it code mixed and all-no-data tiles.
+pub fn holes() -> terraclip::terrain::Heightmap {
+    let v: Vec<f32> = (0..48 * 40)
+        .map(|i| {
+            let (x, y) = (i % 48, i / 48);
+            let hole =
+                (16..32).contains(&x) && y < 16 || (x < 16 && (16..32).contains(&y) && x > y - 16);
+            if hole {
+                f32::NAN
+            } else {
+                (x as f32 * 0.7).sin() * 40.0 + y as f32 * 3.0
+            }
+        })
+        .collect();
+    terraclip::terrain::Heightmap::from_values(48, 40, v, None, [10.0; 2], "test").unwrap()
+}
