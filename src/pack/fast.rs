@@ -152,3 +152,81 @@ pub(crate) fn unmask(mask: &[u8], n: usize, mut put: impl FnMut(usize, bool)) ->
     }
     count
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pack::codec::MIXED;
+
+    /// A tile of `n` samples with a mask, `side` bytes of side stream and
+    /// the symbols `sym`.
+    fn tile(n: usize, side: &[u8], sym: &[usize]) -> Vec<u8> {
+        let nodata: Vec<bool> = (0..n).map(|i| i % 3 == 0).collect();
+        let count = nodata.iter().filter(|&&b| b).count() as u32;
+        encode(MIXED, count, &nodata, side, sym)
+    }
+
+    #[test]
+    fn a_side_stream_that_runs_past_the_tile_is_an_error() {
+        let (n, side) = (40, [7u8; 5]);
+        let sym: Vec<usize> = (0..n).map(|i| 255 + i % 3).collect();
+        let bytes = tile(n, &side, &sym);
+        let p = parts(&bytes, n).unwrap();
+        assert_eq!((p.mask.len(), p.side, p.flags), (5, &side[..], MIXED));
+        let mut out = Vec::new();
+        symbols(p.coded, n, &mut out).unwrap();
+        assert_eq!(out.iter().map(|&s| s as usize).collect::<Vec<_>>(), sym);
+        // Every side length from one past what the tile holds to past the
+        // mask's length again: an error naming both, never a slice past
+        // the end.
+        let room = bytes.len() - HEADER - p.mask.len();
+        for side_len in room + 1..=room + 2 * p.mask.len() + 1 {
+            let mut b = bytes.clone();
+            b[1..5].copy_from_slice(&(side_len as u32).to_le_bytes());
+            let e = parts(&b, n).err().expect("refused");
+            assert!(e.contains("do not fit"), "{e}");
+        }
+        // The whole rest as the side stream leaves no symbols: pcodec's
+        // error, not a panic.
+        let mut b = bytes.clone();
+        b[1..5].copy_from_slice(&(room as u32).to_le_bytes());
+        let p = parts(&b, n).unwrap();
+        assert!(symbols(p.coded, n, &mut out).is_err());
+    }
+
+    #[test]
+    fn symbols_past_the_alphabet_and_bytes_after_the_page_are_errors() {
+        let n = 300;
+        let good: Vec<usize> = (0..n).map(|i| 250 + i % 11).collect();
+        let bytes = encode(0, 0, &[false; 300], &[], &good);
+        let p = parts(&bytes, n).unwrap();
+        let mut out = Vec::new();
+        symbols(p.coded, n, &mut out).unwrap();
+        // One byte more after the page.
+        let mut longer = p.coded.to_vec();
+        longer.push(0);
+        let e = symbols(&longer, n, &mut out).unwrap_err();
+        assert!(e.contains("left over"), "{e}");
+        // Fewer samples than coded: the page does not end where the
+        // tile's rectangle says.
+        assert!(symbols(p.coded, n - 1, &mut out).is_err());
+        // A symbol the models do not have (pcodec codes any u16).
+        let mut bad = good.clone();
+        bad[7] = crate::pack::model::SYMBOLS;
+        let bytes = encode(0, 0, &[false; 300], &[], &bad);
+        let p = parts(&bytes, n).unwrap();
+        let e = symbols(p.coded, n, &mut out).unwrap_err();
+        assert!(e.contains("symbol 512 does not exist"), "{e}");
+    }
+
+    #[test]
+    fn the_mask_gives_each_flag_and_counts_them() {
+        let n = 21;
+        let nodata: Vec<bool> = (0..n).map(|i| i % 4 == 1 || i == 20).collect();
+        let bytes = encode(MIXED, 6, &nodata, &[], &[255; 21]);
+        let p = parts(&bytes, n).unwrap();
+        let mut got = vec![false; n];
+        let count = unmask(p.mask, n, |i, b| got[i] = b);
+        assert_eq!((got, count), (nodata, 6));
+    }
+}
