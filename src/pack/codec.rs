@@ -717,7 +717,8 @@ pub(crate) struct TileOut<'a> {
 /// it (the encoder's own reconstruction's least and greatest valid
 /// sample, so the bounds are exact): a tile whose checksum was made to
 /// match damaged bytes is otherwise free to decode to NaN or to any
-/// height.
+/// height. Returns the tile's least and greatest valid sample ((+∞, −∞)
+/// for none), so a whole level's range needs no second pass.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
     bytes: &[u8],
