@@ -101,85 +101,28 @@ impl Frame {
         } = input;
         let uniforms = VertexUniforms::new(camera, world);
         let layout = Layout::new(&effects);
-        let k = layout.len();
         let base = &pyramid.levels[0];
         let vs = world.vertical_scale as f32;
         let [lo, hi] = params.height_range.unwrap_or(pyramid.height_range());
         let (lo, hi) = (lo * vs, hi * vs);
         let span = if hi > lo { hi - lo } else { 1.0 };
-
-        let fog_rate = fog::rate(params.fog_density);
-        let (positions, mut attrs) = passes.time("vertex", || {
-            let positions: Vec<[f32; 3]> = mesh
-                .vertices
-                .par_iter()
-                .map(|v| uniforms.position(v))
-                .collect();
-            let mut attrs = vec![0.0f32; positions.len() * k];
-            if k > 0 {
-                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
-                    let v = &mesh.vertices[i];
-                    let p = positions[i];
-                    let l = mesh.levels[i / 3] as usize;
-                    if let Some(o) = layout.albedo {
-                        a[o..o + 3].copy_from_slice(&shade::height_albedo((p[2] - lo) / span));
-                    }
-                    if let (Some(o), Some(info)) = (layout.uv, mesh.level_info[l]) {
-                        let g = 1i64 << l;
-                        a[o] = (v.col.div_euclid(g) - info.origin[0]) as f32;
-                        a[o + 1] = (v.row.div_euclid(g) - info.origin[1]) as f32;
-                    }
-                    if let Some(o) = layout.alpha {
-                        a[o] = v.alpha;
-                    }
-                    let e = uniforms.eye;
-                    let view = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
-                    if let Some(o) = layout.fog {
-                        let d = shade::vec3::dot(view, view).sqrt();
-                        a[o] = fog::factor(fog_rate, d);
-                    }
-                    if let Some(o) = layout.view {
-                        a[o..o + 3].copy_from_slice(&view);
-                    }
-                    if let Some(o) = layout.bary {
-                        a[o..o + 3].fill(0.0);
-                        a[o + i % 3] = 1.0;
-                    }
-                });
-            }
-            if let Some(o) = layout.edge {
-                let size = [size[0], size[1]];
-                attrs.par_chunks_mut(3 * k).enumerate().for_each(|(t, a)| {
-                    let c = [0, 1, 2].map(|j| uniforms.clip(positions[3 * t + j]));
-                    let th = wireframe::thresholds(c, size);
-                    for j in 0..3 {
-                        a[j * k + o..j * k + o + 3].copy_from_slice(&th);
-                    }
-                });
-            }
-            (positions, attrs)
-        });
-
-        if let Some(o) = layout.normal {
-            passes.time("normals", || {
-                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
-                    let v = &mesh.vertices[i];
-                    let l = mesh.levels[i / 3] as usize;
-                    let g = 1i64 << l;
-                    let morph = mesh.level_info[l].is_some_and(|m| m.morph);
-                    let alpha = if morph { v.alpha } else { 0.0 };
-                    let n = normals::vertex_normal(
-                        &pyramid.levels,
-                        l,
-                        v.col.div_euclid(g),
-                        v.row.div_euclid(g),
-                        alpha,
-                        world,
-                    );
-                    a[o..o + 3].copy_from_slice(&n);
-                });
-            });
-        }
+        let mut frame = Frame {
+            width: size[0],
+            height: size[1],
+            background,
+            lod: lod.to_string(),
+            uniforms,
+            mesh,
+            effects,
+            params: params.clone(),
+            layout,
+            positions: Vec::new(),
+            attrs: Vec::new(),
+            resources: Resources::default(),
+            height_ramp: (lo, span),
+        };
+        frame.vertex_stage(pyramid, world, passes);
+        let mesh = &frame.mesh;
 
         let mut resources = Resources {
             levels: mesh.level_info.clone(),
@@ -221,21 +164,113 @@ impl Frame {
                 )
             })?);
         }
-        Ok(Frame {
-            width: size[0],
-            height: size[1],
-            background,
-            lod: lod.to_string(),
+        frame.resources = resources;
+        Ok(frame)
+    }
+
+    /// Replaces the mesh by the next batch of the same view (the same
+    /// levels, so the shading resources stay) and runs the vertex stage on
+    /// it, adding its time to the passes already listed. The vertex
+    /// buffers keep their memory from batch to batch.
+    pub fn next_batch(
+        &mut self,
+        mesh: LodMesh,
+        pyramid: &Pyramid,
+        world: &WorldMap,
+        passes: &mut Passes,
+    ) {
+        debug_assert_eq!(mesh.level_info, self.mesh.level_info, "one view's batches");
+        self.mesh = mesh;
+        let mut these = Passes::default();
+        self.vertex_stage(pyramid, world, &mut these);
+        passes.add(these);
+    }
+
+    /// The vertex stage (pass "vertex") and, with lighting, the vertex
+    /// normals (pass "normals") of the mesh, into the frame's buffers.
+    fn vertex_stage(&mut self, pyramid: &Pyramid, world: &WorldMap, passes: &mut Passes) {
+        let Frame {
             uniforms,
             mesh,
-            effects,
-            params: params.clone(),
             layout,
             positions,
             attrs,
-            resources,
+            params,
             height_ramp: (lo, span),
-        })
+            ..
+        } = self;
+        let (lo, span, k) = (*lo, *span, layout.len());
+        let size = [self.width, self.height];
+        let fog_rate = fog::rate(params.fog_density);
+        passes.time("vertex", || {
+            mesh.vertices
+                .par_iter()
+                .map(|v| uniforms.position(v))
+                .collect_into_vec(positions);
+            attrs.clear();
+            attrs.resize(positions.len() * k, 0.0);
+            if k > 0 {
+                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
+                    let v = &mesh.vertices[i];
+                    let p = positions[i];
+                    let l = mesh.levels[i / 3] as usize;
+                    if let Some(o) = layout.albedo {
+                        a[o..o + 3].copy_from_slice(&shade::height_albedo((p[2] - lo) / span));
+                    }
+                    if let (Some(o), Some(info)) = (layout.uv, mesh.level_info[l]) {
+                        let g = 1i64 << l;
+                        a[o] = (v.col.div_euclid(g) - info.origin[0]) as f32;
+                        a[o + 1] = (v.row.div_euclid(g) - info.origin[1]) as f32;
+                    }
+                    if let Some(o) = layout.alpha {
+                        a[o] = v.alpha;
+                    }
+                    let e = uniforms.eye;
+                    let view = [p[0] - e[0], p[1] - e[1], p[2] - e[2]];
+                    if let Some(o) = layout.fog {
+                        let d = shade::vec3::dot(view, view).sqrt();
+                        a[o] = fog::factor(fog_rate, d);
+                    }
+                    if let Some(o) = layout.view {
+                        a[o..o + 3].copy_from_slice(&view);
+                    }
+                    if let Some(o) = layout.bary {
+                        a[o..o + 3].fill(0.0);
+                        a[o + i % 3] = 1.0;
+                    }
+                });
+            }
+            if let Some(o) = layout.edge {
+                attrs.par_chunks_mut(3 * k).enumerate().for_each(|(t, a)| {
+                    let c = [0, 1, 2].map(|j| uniforms.clip(positions[3 * t + j]));
+                    let th = wireframe::thresholds(c, size);
+                    for j in 0..3 {
+                        a[j * k + o..j * k + o + 3].copy_from_slice(&th);
+                    }
+                });
+            }
+        });
+
+        if let Some(o) = layout.normal {
+            passes.time("normals", || {
+                attrs.par_chunks_mut(k).enumerate().for_each(|(i, a)| {
+                    let v = &mesh.vertices[i];
+                    let l = mesh.levels[i / 3] as usize;
+                    let g = 1i64 << l;
+                    let morph = mesh.level_info[l].is_some_and(|m| m.morph);
+                    let alpha = if morph { v.alpha } else { 0.0 };
+                    let n = normals::vertex_normal(
+                        &pyramid.levels,
+                        l,
+                        v.col.div_euclid(g),
+                        v.row.div_euclid(g),
+                        alpha,
+                        world,
+                    );
+                    a[o..o + 3].copy_from_slice(&n);
+                });
+            });
+        }
     }
 
     /// Triangles in the mesh.

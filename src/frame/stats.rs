@@ -28,6 +28,17 @@ impl Passes {
         });
         out
     }
+    /// Adds the times of `more` to the passes of the same name (listing
+    /// those not listed yet): a frame drawn in batches lists each pass
+    /// once, with the time of all its batches.
+    pub fn add(&mut self, more: Passes) {
+        for p in more.0 {
+            match self.0.iter_mut().rev().find(|q| q.name == p.name) {
+                Some(q) => q.ms += p.ms,
+                None => self.0.push(p),
+            }
+        }
+    }
     /// Total time of the passes named `names` (ms).
     pub fn ms(&self, names: &[&str]) -> f64 {
         pass_ms(&self.0, names)

@@ -377,6 +377,288 @@ fn setup_one(
     })
 }
 
+/// Rasterises `mesh` into a `width`×`height` target.
+///
+/// # Panics
+/// If `mesh` is inconsistent (index out of range, attribute count over
+/// [`MAX_VARYINGS`], lengths that disagree): those are programming errors.
+pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster {
+    let mut target = Target::new(width, height, mesh.linear, *opts);
+    target.draw(mesh);
+    target.finish()
+}
+
+/// A target drawn in batches of triangles: each batch is set up, binned
+/// and drawn after those before it, in submission order, so any split of
+/// one mesh into consecutive batches leaves the depth and the pixels'
+/// triangles exactly as one [`rasterise`] of the whole mesh. A mesh larger
+/// than memory (brute force of a large map) then needs only a batch's
+/// vertices at a time, and the buffers a batch uses are kept for the next
+/// one rather than allocated (and faulted in by the kernel) again.
+pub struct Target {
+    width: u32,
+    height: u32,
+    opts: Options,
+    linear: Vec<bool>,
+    depth: Vec<f32>,
+    prim: Vec<u32>,
+    tris: Vec<Tri>,
+    planes: Vec<Plane>,
+    stats: RasterStats,
+    scratch: Scratch,
+}
+
+/// Per-batch working memory, kept between batches.
+#[derive(Default)]
+struct Scratch {
+    finite: Vec<bool>,
+    masks: Vec<u32>,
+    wins: Vec<WinVertex>,
+    chunks: Vec<Chunk>,
+    bins: Vec<Vec<u32>>,
+    keep: Vec<u32>,
+}
+
+impl Target {
+    /// A cleared target (depth 1.0, no triangle) for meshes whose varyings
+    /// are `linear`.
+    pub fn new(width: u32, height: u32, linear: &[bool], opts: Options) -> Self {
+        assert!(linear.len() <= MAX_VARYINGS, "too many varyings");
+        let len = width as usize * height as usize;
+        Target {
+            width,
+            height,
+            opts,
+            linear: linear.to_vec(),
+            depth: vec![1.0; len],
+            prim: vec![NONE; len],
+            tris: vec![],
+            planes: vec![],
+            stats: RasterStats::default(),
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Sets up `mesh`'s triangles and draws them over what earlier batches
+    /// drew.
+    ///
+    /// # Panics
+    /// If `mesh` is inconsistent with itself or with the target's varyings.
+    pub fn draw(&mut self, mesh: &Mesh) {
+        let n = mesh.linear.len();
+        assert_eq!(mesh.linear, &self.linear[..], "varyings");
+        assert_eq!(mesh.attrs.len(), mesh.clip.len() * n, "attribute count");
+        assert_eq!(mesh.flat.len(), mesh.triangles.len(), "flat count");
+        let vp = Viewport::new(self.width, self.height);
+        let sc = &mut self.scratch;
+        mesh.clip
+            .par_iter()
+            .map(|c| c.iter().all(|v| v.is_finite()))
+            .collect_into_vec(&mut sc.finite);
+        mesh.clip
+            .par_iter()
+            .map(|&c| clip::outcode(c))
+            .collect_into_vec(&mut sc.masks);
+        mesh.clip
+            .par_iter()
+            .map(|&c| vp.map(c))
+            .collect_into_vec(&mut sc.wins);
+        let (finite, masks, wins) = (&sc.finite, &sc.masks, &sc.wins);
+        let attrs_of = |i: u32| &mesh.attrs[i as usize * n..i as usize * n + n];
+
+        // The chunks' buffers are kept too: a batch of the same size as the
+        // last one reuses them (their order, not which one, decides where
+        // the triangles go).
+        let chunk_count = mesh.triangles.len().div_ceil(SETUP_CHUNK);
+        sc.chunks.resize_with(chunk_count.max(sc.chunks.len()), Chunk::default);
+        sc.chunks[..chunk_count]
+            .par_iter_mut()
+            .zip(mesh.triangles.par_chunks(SETUP_CHUNK))
+            .zip(mesh.flat.par_chunks(SETUP_CHUNK))
+            .for_each(|((c, tris), flats)| {
+                c.clear();
+                let mut fan = Vec::new();
+                for (t, &flat) in tris.iter().zip(flats) {
+                    if !t.iter().all(|&i| finite[i as usize]) {
+                        continue;
+                    }
+                    let m = t.map(|i| masks[i as usize]);
+                    if m[0] & m[1] & m[2] != 0 {
+                        c.rejected += 1;
+                        continue;
+                    }
+                    let or = m[0] | m[1] | m[2];
+                    if or == 0 {
+                        let v = t.map(|i| &wins[i as usize]);
+                        let a = t.map(attrs_of);
+                        if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
+                            c.tris.push(s);
+                        }
+                        continue;
+                    }
+                    c.clipped += 1;
+                    let cv = t.map(|i| {
+                        let mut a = [0.0; MAX_VARYINGS];
+                        a[..n].copy_from_slice(attrs_of(i));
+                        ClipVertex {
+                            clip: mesh.clip[i as usize],
+                            win: wins[i as usize],
+                            attrs: a,
+                        }
+                    });
+                    fan.clear();
+                    c.non_finite_clipped += clip::clip_triangle(
+                        [&cv[0], &cv[1], &cv[2]],
+                        or,
+                        n,
+                        mesh.linear,
+                        &vp,
+                        &mut fan,
+                    );
+                    for f in &fan {
+                        let v = [&f[0].win, &f[1].win, &f[2].win];
+                        let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
+                        if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
+                            c.tris.push(s);
+                        }
+                    }
+                }
+            });
+
+        let stats = &mut self.stats;
+        stats.input_triangles += mesh.triangles.len();
+        stats.non_finite_vertices += finite.iter().filter(|f| !**f).count();
+        let first = self.tris.len();
+        for c in &sc.chunks[..chunk_count] {
+            stats.rejected += c.rejected;
+            stats.clipped += c.clipped;
+            stats.non_finite_clipped += c.non_finite_clipped;
+            self.tris.extend_from_slice(&c.tris);
+            self.planes.extend_from_slice(&c.planes);
+        }
+        let new = &self.tris[first..];
+        stats.setup += new.len();
+        let finite = |p: &Plane| p.dadx.is_finite() && p.dady.is_finite() && p.a00.is_finite();
+        stats.non_finite_planes += new
+            .iter()
+            .filter(|t| !(finite(&t.z) && finite(&t.oow)))
+            .count();
+
+        bin::bin_into(&mut sc.bins, new, first as u32, self.width, self.height);
+        let bins = &sc.bins;
+        let tris = &self.tris;
+        let (tiles_x, _) = bin::grid(self.width, self.height);
+        let path = self.opts.path;
+        let avx2 = path.uses_avx2_fma();
+        // One band of 64 rows per task: each of its tiles with triangles
+        // in this batch is read into a reused tile buffer, drawn and
+        // copied back, so the full-size buffers are touched only where
+        // something is drawn, in parallel.
+        let w = self.width as usize;
+        let band = w * bin::TILE as usize;
+        self.depth
+            .par_chunks_mut(band)
+            .zip(self.prim.par_chunks_mut(band))
+            .enumerate()
+            .for_each_init(tile::TileBuf::new, |buf, (by, (depth, prim))| {
+                let ty0 = by as u32 * bin::TILE;
+                let h = depth.len() / w;
+                for bx in 0..tiles_x {
+                    let ids = &bins[(by as u32 * tiles_x + bx) as usize];
+                    if ids.is_empty() {
+                        continue;
+                    }
+                    let tx0 = bx * bin::TILE;
+                    let tw = (w - tx0 as usize).min(bin::TILE as usize);
+                    for r in 0..h {
+                        let at = r * w + tx0 as usize;
+                        let to = r * tile::STRIDE;
+                        buf.depth[to..to + tw].copy_from_slice(&depth[at..at + tw]);
+                        buf.prim[to..to + tw].copy_from_slice(&prim[at..at + tw]);
+                    }
+                    for &id in ids {
+                        let t = &tris[id as usize];
+                        let (x, y) = (tx0 as i64, ty0 as i64);
+                        match path {
+                            Path::Scalar => tile::draw(t, id, x, y, buf),
+                            Path::Simd | Path::Portable => simd::draw(avx2, t, id, x, y, buf),
+                        }
+                    }
+                    for r in 0..h {
+                        let at = r * w + tx0 as usize;
+                        let from = r * tile::STRIDE;
+                        depth[at..at + tw].copy_from_slice(&buf.depth[from..from + tw]);
+                        prim[at..at + tw].copy_from_slice(&buf.prim[from..from + tw]);
+                    }
+                }
+            });
+    }
+
+    /// Drops the set-up triangles that no pixel shows any more and
+    /// renumbers the rest (in their order) in the pixels: later batches
+    /// can only hide a triangle, never show one again, so the target then
+    /// holds at most one triangle per pixel however many were drawn.
+    pub fn compact(&mut self) {
+        let keep = &mut self.scratch.keep;
+        keep.clear();
+        keep.resize(self.tris.len(), NONE);
+        for &p in &self.prim {
+            if p != NONE {
+                keep[p as usize] = 0;
+            }
+        }
+        let n = self.linear.len();
+        let mut next = 0u32;
+        for old in 0..self.tris.len() {
+            if keep[old] == NONE {
+                continue;
+            }
+            keep[old] = next;
+            let new = next as usize;
+            self.tris[new] = self.tris[old];
+            self.planes.copy_within(old * n..old * n + n, new * n);
+            next += 1;
+        }
+        self.tris.truncate(next as usize);
+        self.planes.truncate(next as usize * n);
+        self.prim.par_iter_mut().for_each(|p| {
+            if *p != NONE {
+                *p = keep[*p as usize];
+            }
+        });
+    }
+
+    /// Set-up triangles held now.
+    pub fn triangles_held(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// The finished raster.
+    pub fn finish(mut self) -> Raster {
+        let (covered, bad) = self
+            .prim
+            .par_iter()
+            .zip(self.depth.par_iter())
+            .map(|(&p, d)| (usize::from(p != NONE), usize::from(!d.is_finite())))
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        self.stats.covered_pixels = covered;
+        self.stats.non_finite_depth = bad;
+        Raster {
+            width: self.width,
+            height: self.height,
+            depth: self.depth,
+            prim: self.prim,
+            tris: self.tris,
+            planes: self.planes,
+            linear: self.linear,
+            stats: self.stats,
+        }
+    }
+}
+
+/// Triangles per set-up task.
+const SETUP_CHUNK: usize = 2048;
+
 /// Per-chunk setup output, merged in order afterwards.
 #[derive(Default)]
 struct Chunk {
@@ -387,158 +669,13 @@ struct Chunk {
     non_finite_clipped: usize,
 }
 
-/// Rasterises `mesh` into a `width`×`height` target.
-///
-/// # Panics
-/// If `mesh` is inconsistent (index out of range, attribute count over
-/// [`MAX_VARYINGS`], lengths that disagree): those are programming errors.
-pub fn rasterise(mesh: &Mesh, width: u32, height: u32, opts: &Options) -> Raster {
-    let n = mesh.linear.len();
-    assert!(n <= MAX_VARYINGS, "too many varyings");
-    assert_eq!(mesh.attrs.len(), mesh.clip.len() * n, "attribute count");
-    assert_eq!(mesh.flat.len(), mesh.triangles.len(), "flat count");
-    let vp = Viewport::new(width, height);
-    let finite: Vec<bool> = mesh
-        .clip
-        .iter()
-        .map(|c| c.iter().all(|v| v.is_finite()))
-        .collect();
-    let masks: Vec<u32> = mesh.clip.iter().map(|&c| clip::outcode(c)).collect();
-    let wins: Vec<WinVertex> = mesh.clip.iter().map(|&c| vp.map(c)).collect();
-    let attrs_of = |i: u32| &mesh.attrs[i as usize * n..i as usize * n + n];
-
-    let chunks: Vec<Chunk> = mesh
-        .triangles
-        .par_chunks(2048)
-        .zip(mesh.flat.par_chunks(2048))
-        .map(|(tris, flats)| {
-            let mut c = Chunk::default();
-            let mut fan = Vec::new();
-            for (t, &flat) in tris.iter().zip(flats) {
-                if !t.iter().all(|&i| finite[i as usize]) {
-                    continue;
-                }
-                let m = t.map(|i| masks[i as usize]);
-                if m[0] & m[1] & m[2] != 0 {
-                    c.rejected += 1;
-                    continue;
-                }
-                let or = m[0] | m[1] | m[2];
-                if or == 0 {
-                    let v = t.map(|i| &wins[i as usize]);
-                    let a = t.map(attrs_of);
-                    if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
-                        c.tris.push(s);
-                    }
-                    continue;
-                }
-                c.clipped += 1;
-                let cv = t.map(|i| {
-                    let mut a = [0.0; MAX_VARYINGS];
-                    a[..n].copy_from_slice(attrs_of(i));
-                    ClipVertex {
-                        clip: mesh.clip[i as usize],
-                        win: wins[i as usize],
-                        attrs: a,
-                    }
-                });
-                fan.clear();
-                c.non_finite_clipped += clip::clip_triangle(
-                    [&cv[0], &cv[1], &cv[2]],
-                    or,
-                    n,
-                    mesh.linear,
-                    &vp,
-                    &mut fan,
-                );
-                for f in &fan {
-                    let v = [&f[0].win, &f[1].win, &f[2].win];
-                    let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
-                    if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
-                        c.tris.push(s);
-                    }
-                }
-            }
-            c
-        })
-        .collect();
-
-    let mut stats = RasterStats {
-        input_triangles: mesh.triangles.len(),
-        non_finite_vertices: finite.iter().filter(|f| !**f).count(),
-        ..Default::default()
-    };
-    let mut tris = Vec::with_capacity(chunks.iter().map(|c| c.tris.len()).sum());
-    let mut planes = Vec::with_capacity(tris.capacity() * n);
-    for c in chunks {
-        stats.rejected += c.rejected;
-        stats.clipped += c.clipped;
-        stats.non_finite_clipped += c.non_finite_clipped;
-        tris.extend(c.tris);
-        planes.extend(c.planes);
-    }
-    stats.setup = tris.len();
-    let finite = |p: &Plane| p.dadx.is_finite() && p.dady.is_finite() && p.a00.is_finite();
-    stats.non_finite_planes = tris
-        .iter()
-        .filter(|t| !(finite(&t.z) && finite(&t.oow)))
-        .count();
-
-    let bins = bin::bin(&tris, width, height);
-    let (tiles_x, _) = bin::grid(width, height);
-    let avx2 = opts.path.uses_avx2_fma();
-    // One band of 64 rows per task: its tiles are drawn into a reused tile
-    // buffer and copied straight into the band, which the task owns, so the
-    // full-size buffers are written once, in parallel.
-    let w = width as usize;
-    let band = w * bin::TILE as usize;
-    let len = w * height as usize;
-    let mut depth = vec![0.0f32; len];
-    let mut prim = vec![0u32; len];
-    let counts: Vec<[usize; 2]> = depth
-        .par_chunks_mut(band)
-        .zip(prim.par_chunks_mut(band))
-        .enumerate()
-        .map_init(tile::TileBuf::new, |buf, (by, (depth, prim))| {
-            let ty0 = by as u32 * bin::TILE;
-            let h = depth.len() / w;
-            let mut counts = [0usize; 2];
-            for bx in 0..tiles_x {
-                let tx0 = bx * bin::TILE;
-                buf.clear();
-                for &id in &bins[(by as u32 * tiles_x + bx) as usize] {
-                    let t = &tris[id as usize];
-                    let (x, y) = (tx0 as i64, ty0 as i64);
-                    match opts.path {
-                        Path::Scalar => tile::draw(t, id, x, y, buf),
-                        Path::Simd | Path::Portable => simd::draw(avx2, t, id, x, y, buf),
-                    }
-                }
-                let tw = (w - tx0 as usize).min(bin::TILE as usize);
-                for r in 0..h {
-                    let dst = r * w + tx0 as usize;
-                    let src = r * tile::STRIDE;
-                    let (d, p) = (&buf.depth[src..src + tw], &buf.prim[src..src + tw]);
-                    depth[dst..dst + tw].copy_from_slice(d);
-                    prim[dst..dst + tw].copy_from_slice(p);
-                    counts[0] += p.iter().filter(|&&p| p != NONE).count();
-                    counts[1] += d.iter().filter(|d| !d.is_finite()).count();
-                }
-            }
-            counts
-        })
-        .collect();
-    stats.covered_pixels = counts.iter().map(|c| c[0]).sum();
-    stats.non_finite_depth = counts.iter().map(|c| c[1]).sum();
-    Raster {
-        width,
-        height,
-        depth,
-        prim,
-        tris,
-        planes,
-        linear: mesh.linear.to_vec(),
-        stats,
+impl Chunk {
+    fn clear(&mut self) {
+        self.tris.clear();
+        self.planes.clear();
+        self.rejected = 0;
+        self.clipped = 0;
+        self.non_finite_clipped = 0;
     }
 }
 

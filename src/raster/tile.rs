@@ -22,11 +22,6 @@ impl TileBuf {
             prim: vec![super::NONE; n],
         }
     }
-    /// Back to the cleared state (depth 1.0, no triangle) for the next tile.
-    pub fn clear(&mut self) {
-        self.depth.fill(1.0);
-        self.prim.fill(super::NONE);
-    }
 }
 
 impl Default for TileBuf {
