@@ -276,3 +276,76 @@ fn fly_reports_updates_and_sees_pops_without_morph() {
     .unwrap();
     assert_eq!(bf.popping_max, 0.0, "brute force cannot pop against itself");
 }
+
+/// Brute force drawn batch by batch, the target compacted between them,
+/// gives what its whole mesh drawn at once gives: colour, depth and the
+/// statistics, with effects that read per-vertex (fog, normals), per-
+/// triangle (wireframe) and per-level data (normal map, lightmap), over
+/// two views and batch sizes from a few hundred triangles to the whole.
+#[test]
+fn brute_force_in_batches_draws_what_its_whole_mesh_draws() {
+    let sets: [&[&str]; 2] = [
+        &["lambert", "fog", "normal-map", "shadows", "wireframe"],
+        &["phong", "fog", "morph", "level-tint"],
+    ];
+    let mut batches_seen = 0;
+    for effects in sets {
+        batches_seen += batches_match(effects);
+    }
+    assert!(batches_seen > 200, "{batches_seen} batches");
+}
+
+/// Draws two views batched and whole with `effects`; the batches drawn.
+fn batches_match(effects: &[&str]) -> usize {
+    let mut scene = scene().with_lod("brute-force").unwrap();
+    scene.effects = effects.iter().map(|e| e.parse().unwrap()).collect();
+    scene.image.width = 120;
+    scene.image.height = 70;
+    let opts = terraclip::render::RenderOptions::default();
+    let passes = terraclip::frame::stats::Passes::default;
+    let mut whole = terraclip::render::Session::new(&scene, &mut passes()).unwrap();
+    let mut batched = terraclip::render::Session::new(&scene, &mut passes()).unwrap();
+    let views = [
+        scene.camera(),
+        camera(100.0, -2400.0, 400.0, 1200.0, -600.0),
+    ];
+    let mut batches_seen = 0;
+    for cam in views {
+        let (frame, _) = whole.frame(&cam, &mut passes()).unwrap();
+        let total = frame.triangle_count();
+        // Per-vertex normals where no normal map replaces them.
+        assert_eq!(
+            frame.layout.normal.is_some(),
+            !effects.contains(&"normal-map")
+        );
+        let (want, raster) = terraclip::render::draw(&frame, &opts, &mut passes());
+        assert!(raster.covered_pixels > 1000, "{raster:?}");
+        for batch in [300, 7_001, total] {
+            batched.batch_triangles = batch;
+            let (got, stats) = batched.render(&cam, &opts, passes()).unwrap();
+            assert!(
+                got.rgba == want.rgba,
+                "{effects:?}: colour, batches of {batch}"
+            );
+            let bits = |d: &[f32]| d.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert!(
+                bits(&got.depth) == bits(&want.depth),
+                "depth, batches of {batch}"
+            );
+            assert_eq!(stats.raster, raster, "batches of {batch}");
+            assert_eq!(stats.triangles, total);
+            assert_eq!(stats.normals_computed, {
+                let maps: usize = frame
+                    .resources
+                    .normal_maps
+                    .iter()
+                    .flatten()
+                    .map(|m| m.data.len())
+                    .sum();
+                frame.layout.normal.map_or(0, |_| 3 * total) + maps
+            });
+            batches_seen += total.div_ceil(batch);
+        }
+    }
+    batches_seen
+}

@@ -3,7 +3,7 @@
 //! bits for any thread count and for the scalar and 8-lane paths.
 
 use proptest::prelude::*;
-use terraclip::raster::{rasterise, Mesh, Options, Path, Raster, NONE};
+use terraclip::raster::{rasterise, Mesh, Options, Path, Raster, Target, NONE};
 
 /// Window position (pixels, y down) to clip space with w = 1, for a target
 /// whose half sizes are powers of two so the viewport FMA is exact.
@@ -219,5 +219,69 @@ proptest! {
         for (threads, path) in [(2, Path::Scalar), (8, Path::Scalar), (1, Path::Simd), (2, Path::Simd), (8, Path::Simd)] {
             prop_assert!(bits(&run(threads, path)) == want, "{} threads, {:?}", threads, path);
         }
+    }
+
+    /// The same triangles drawn in consecutive batches, with the target
+    /// compacted after any of them, leave every pixel's depth, varyings
+    /// and flat value as one draw of them all: what lets brute force of a
+    /// large map be drawn a batch at a time. Compaction keeps at most one
+    /// triangle per pixel.
+    #[test]
+    fn batches_and_compaction_do_not_change_bits(
+        verts in prop::collection::vec(
+            (-1.6f32..1.6, -1.6f32..1.6, -0.3f32..1.2, -0.2f32..2.0), 3..150),
+        cuts in prop::collection::vec((0usize..50, any::<bool>()), 0..6),
+        w in 1u32..140, h in 1u32..100,
+        simd in any::<bool>(),
+    ) {
+        let n = verts.len() / 3 * 3;
+        let clip: Vec<[f32; 4]> = verts[..n].iter().map(|&(x, y, z, w)| [x, y, z, w]).collect();
+        let attrs: Vec<f32> = clip.iter().flat_map(|c| [c[0] * 0.5 + 0.5, c[1]]).collect();
+        let count = n as u32 / 3;
+        let tris: Vec<[u32; 3]> = (0..count).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
+        let flat: Vec<u32> = (0..count).collect();
+        let linear = [false, true];
+        let opts = Options { path: if simd { Path::Simd } else { Path::Scalar } };
+        let whole = rasterise(
+            &Mesh { clip: &clip, attrs: &attrs, linear: &linear, triangles: &tris, flat: &flat },
+            w, h, &opts,
+        );
+        let mut bounds: Vec<(usize, bool)> = cuts.iter().map(|&(c, k)| (c.min(tris.len()), k)).collect();
+        bounds.sort();
+        bounds.push((tris.len(), false));
+        let mut target = Target::new(w, h, &linear, opts);
+        let mut from = 0;
+        for (to, compact) in bounds {
+            target.draw(&Mesh {
+                clip: &clip,
+                attrs: &attrs,
+                linear: &linear,
+                triangles: &tris[from..to],
+                flat: &flat[from..to],
+            });
+            if compact {
+                target.compact();
+                prop_assert!(target.triangles_held() <= (w * h) as usize);
+            }
+            from = to;
+        }
+        let batched = target.finish();
+        // Triangle ids differ after compaction; what a pixel shows must not.
+        let shown = |r: &Raster| {
+            let mut v: Vec<u32> = r.depth.iter().map(|d| d.to_bits()).collect();
+            let mut out = [0.0f32; 2];
+            for (i, &p) in r.prim.iter().enumerate() {
+                if p == NONE {
+                    v.push(NONE);
+                    continue;
+                }
+                r.interpolate(p, i as u32 % w, i as u32 / w, &mut out);
+                v.extend(out.map(f32::to_bits));
+                v.push(r.tris[p as usize].flat);
+            }
+            v
+        };
+        prop_assert!(shown(&batched) == shown(&whole));
+        prop_assert_eq!(&batched.stats, &whole.stats);
     }
 }

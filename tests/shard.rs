@@ -77,6 +77,7 @@ fn untimed(json: &str) -> serde_json::Value {
                         || k.starts_with("ms_")
                         || [
                             "peak_rss_bytes",
+                            "rusage",
                             "pareto",
                             "budget_ms",
                             "best_in_budget",

@@ -2,6 +2,7 @@
 
 use super::{load_scene, progress};
 use std::path::PathBuf;
+use terraclip::frame::stats::Rusage;
 use terraclip::render::Image;
 use terraclip::scene::{Overrides, Scene};
 use terraclip::studies::cracks;
@@ -45,6 +46,7 @@ fn scheme_list(lod: &Option<String>, s: &Scene) -> Vec<String> {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
+    let start = Rusage::now();
     if a.views == 0 {
         anyhow::bail!("--views must be at least 1");
     }
@@ -78,7 +80,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             a.size[0],
             a.size[1]
         );
-        let v = shard::tag(serde_json::to_value(&r)?, "cracks", a.shard, &of);
+        let mut v = shard::tag(serde_json::to_value(&r)?, "cracks", a.shard, &of);
+        v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
         println!("{v}");
     } else {
         for c in &r.schemes {

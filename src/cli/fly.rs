@@ -3,6 +3,7 @@
 use super::{progress, SceneArgs};
 use std::path::PathBuf;
 use terraclip::error::write_atomic;
+use terraclip::frame::stats::Rusage;
 use terraclip::studies::fly;
 use terraclip::studies::shard::{self, Shard};
 
@@ -39,6 +40,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
+    let start = Rusage::now();
     if a.frames == 0 || a.frames > 100_000 {
         anyhow::bail!("--frames must be within 1..=100000, got {}", a.frames);
     }
@@ -90,7 +92,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             a.step,
             a.no_popping
         );
-        let v = shard::tag(serde_json::to_value(&report)?, "fly", a.shard, &of);
+        let mut v = shard::tag(serde_json::to_value(&report)?, "fly", a.shard, &of);
+        v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
         println!("{v}");
     } else {
         println!(

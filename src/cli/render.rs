@@ -3,6 +3,7 @@
 use super::SceneArgs;
 use serde_json::json;
 use std::path::PathBuf;
+use terraclip::frame::stats::Rusage;
 use terraclip::render::{self, Backend, RenderOptions};
 use terraclip::scene::Scene;
 
@@ -36,6 +37,7 @@ impl Args {
 
 /// Renders the scene to `out` and prints its statistics.
 pub fn run(a: &Args) -> anyhow::Result<()> {
+    let start = Rusage::now();
     let s = a.args.scene(&a.scene, Scene::default_scene)?;
     let (image, stats) = match a.backend {
         Backend::Cpu => render::render(&s, &RenderOptions::default())?,
@@ -44,6 +46,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     terraclip::error::write_atomic(&a.out, &image.png()?)?;
     let mut v = serde_json::to_value(&stats)?;
     v["output"] = json!(a.out);
+    v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
     if a.json {
         println!("{v}");
         return Ok(());

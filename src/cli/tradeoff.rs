@@ -3,6 +3,7 @@
 
 use super::{progress, SceneArgs};
 use std::path::PathBuf;
+use terraclip::frame::stats::Rusage;
 use terraclip::studies::shard::{self, Shard};
 use terraclip::studies::tradeoff;
 
@@ -30,6 +31,7 @@ pub struct Args {
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {
+    let start = Rusage::now();
     if a.path_frames < 2 {
         anyhow::bail!("--path-frames must be at least 2");
     }
@@ -72,7 +74,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             a.path_frames,
             a.quick
         );
-        let v = shard::tag(serde_json::to_value(&report)?, "tradeoff", a.shard, &of);
+        let mut v = shard::tag(serde_json::to_value(&report)?, "tradeoff", a.shard, &of);
+        v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
         println!("{v}");
         return Ok(());
     }

@@ -290,6 +290,23 @@ pub trait Lod: Send {
     fn update(&mut self, view: &View) -> LodUpdate;
     /// The triangles for the view, culled to its frustum.
     fn mesh(&mut self, view: &View) -> LodMesh;
+    /// The same triangles in consecutive batches, in draw order, for a
+    /// back end that draws as they come: `cursor` starts at 0 and says
+    /// where the next batch begins; `out` is replaced by a batch of about
+    /// `max` triangles (its memory kept), and the answer is whether more
+    /// follow. A scheme whose mesh is small gives it whole, in one batch;
+    /// brute force, whose mesh grows with the map, gives rows of blocks.
+    fn mesh_batch(
+        &mut self,
+        view: &View,
+        cursor: &mut usize,
+        max: usize,
+        out: &mut LodMesh,
+    ) -> bool {
+        let _ = (cursor, max);
+        *out = self.mesh(view);
+        false
+    }
     /// The terrain the scheme draws from (the frame reads normals and
     /// bounds from it; a lazy one grows as the scheme updates).
     fn pyramid(&self) -> &Pyramid;

@@ -423,20 +423,36 @@ impl Target {
     /// A cleared target (depth 1.0, no triangle) for meshes whose varyings
     /// are `linear`.
     pub fn new(width: u32, height: u32, linear: &[bool], opts: Options) -> Self {
-        assert!(linear.len() <= MAX_VARYINGS, "too many varyings");
-        let len = width as usize * height as usize;
-        Target {
-            width,
-            height,
+        let mut t = Target {
+            width: 0,
+            height: 0,
             opts,
-            linear: linear.to_vec(),
-            depth: vec![1.0; len],
-            prim: vec![NONE; len],
+            linear: vec![],
+            depth: vec![],
+            prim: vec![],
             tris: vec![],
             planes: vec![],
             stats: RasterStats::default(),
             scratch: Scratch::default(),
-        }
+        };
+        t.reset(width, height, linear, opts);
+        t
+    }
+
+    /// Cleared again for a new image, keeping the working memory that
+    /// [`Target::finish`] did not hand over.
+    pub fn reset(&mut self, width: u32, height: u32, linear: &[bool], opts: Options) {
+        assert!(linear.len() <= MAX_VARYINGS, "too many varyings");
+        let len = width as usize * height as usize;
+        (self.width, self.height, self.opts) = (width, height, opts);
+        self.linear = linear.to_vec();
+        self.depth.clear();
+        self.depth.resize(len, 1.0);
+        self.prim.clear();
+        self.prim.resize(len, NONE);
+        self.tris.clear();
+        self.planes.clear();
+        self.stats = RasterStats::default();
     }
 
     /// Sets up `mesh`'s triangles and draws them over what earlier batches
@@ -470,7 +486,8 @@ impl Target {
         // last one reuses them (their order, not which one, decides where
         // the triangles go).
         let chunk_count = mesh.triangles.len().div_ceil(SETUP_CHUNK);
-        sc.chunks.resize_with(chunk_count.max(sc.chunks.len()), Chunk::default);
+        sc.chunks
+            .resize_with(chunk_count.max(sc.chunks.len()), Chunk::default);
         sc.chunks[..chunk_count]
             .par_iter_mut()
             .zip(mesh.triangles.par_chunks(SETUP_CHUNK))
@@ -609,11 +626,11 @@ impl Target {
         }
         let n = self.linear.len();
         let mut next = 0u32;
-        for old in 0..self.tris.len() {
-            if keep[old] == NONE {
+        for (old, k) in keep.iter_mut().enumerate() {
+            if *k == NONE {
                 continue;
             }
-            keep[old] = next;
+            *k = next;
             let new = next as usize;
             self.tris[new] = self.tris[old];
             self.planes.copy_within(old * n..old * n + n, new * n);
@@ -633,8 +650,8 @@ impl Target {
         self.tris.len()
     }
 
-    /// The finished raster.
-    pub fn finish(mut self) -> Raster {
+    /// The finished raster; the target is empty until [`Target::reset`].
+    pub fn finish(&mut self) -> Raster {
         let (covered, bad) = self
             .prim
             .par_iter()
@@ -646,12 +663,12 @@ impl Target {
         Raster {
             width: self.width,
             height: self.height,
-            depth: self.depth,
-            prim: self.prim,
-            tris: self.tris,
-            planes: self.planes,
-            linear: self.linear,
-            stats: self.stats,
+            depth: std::mem::take(&mut self.depth),
+            prim: std::mem::take(&mut self.prim),
+            tris: std::mem::take(&mut self.tris),
+            planes: std::mem::take(&mut self.planes),
+            linear: self.linear.clone(),
+            stats: std::mem::take(&mut self.stats),
         }
     }
 }

@@ -70,6 +70,7 @@ pub fn render(r: &mut GpuRenderer, scene: &Scene) -> Result<(Image, RenderStats)
     let (frame, image, lazy) = frame(r, &mut session, &scene.camera(), &mut passes)?;
     let mut stats = super::stats(
         &frame,
+        super::Drawn::of(&frame),
         super::Backend::Gpu.name(),
         Default::default(),
         passes,

@@ -9,11 +9,12 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::frame::stats::{Pass, Passes};
 use crate::frame::{Frame, FrameInput};
+use crate::lod::LodMesh;
 use crate::lod::{Lod, LodConfig, LodUpdate, View};
 use crate::pack::reader::PackReader;
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
-use crate::raster::{self, Mesh, Options, Path, RasterStats};
+use crate::raster::{self, Mesh, Options, Path, RasterStats, Target};
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
@@ -141,31 +142,78 @@ impl Default for RenderOptions {
 /// Rasterises `frame`'s triangles at the given clip positions (one per
 /// frame vertex) with the frame's varyings.
 pub fn rasterise_frame(frame: &Frame, clip: &[[f32; 4]], path: raster::Path) -> raster::Raster {
-    let tris: Vec<[u32; 3]> = (0..frame.triangle_count() as u32)
-        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-        .collect();
-    let mesh = Mesh {
+    let mut target = Target::new(
+        frame.width,
+        frame.height,
+        &frame.layout.linear,
+        Options { path },
+    );
+    let mut tris = Vec::new();
+    draw_clipped(frame, clip, &mut tris, &mut target);
+    target.finish()
+}
+
+/// Draws `frame`'s triangles at `clip` into `target`; `tris` is the
+/// triangles' vertex indices, kept from batch to batch.
+fn draw_clipped(frame: &Frame, clip: &[[f32; 4]], tris: &mut Vec<[u32; 3]>, target: &mut Target) {
+    tris.clear();
+    tris.extend((0..frame.triangle_count() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]));
+    target.draw(&Mesh {
         clip,
         attrs: &frame.attrs,
         linear: &frame.layout.linear,
-        triangles: &tris,
+        triangles: tris,
         flat: &frame.mesh.levels,
-    };
-    raster::rasterise(&mesh, frame.width, frame.height, &Options { path })
+    });
+}
+
+/// The memory one batch of a frame needs between the vertex stage and the
+/// rasteriser, kept for the next batch.
+#[derive(Default)]
+struct BatchBuffers {
+    clip: Vec<[f32; 4]>,
+    tris: Vec<[u32; 3]>,
+}
+
+/// The vertex stage's clip positions of `frame`, then its triangles, into
+/// `target`.
+fn draw_frame(frame: &Frame, buffers: &mut BatchBuffers, target: &mut Target) {
+    let u = &frame.uniforms;
+    frame
+        .positions
+        .par_iter()
+        .map(|&p| u.clip(p))
+        .collect_into_vec(&mut buffers.clip);
+    draw_clipped(frame, &buffers.clip, &mut buffers.tris, target);
 }
 
 /// The vertex stage's clip positions, then [`rasterise_frame`]: the raster
 /// [`draw`] shades, for callers that need its triangles (the tie band of
 /// `check-gpu`).
 pub fn raster(frame: &Frame, path: raster::Path) -> raster::Raster {
-    let u = &frame.uniforms;
-    let clip: Vec<[f32; 4]> = frame.positions.par_iter().map(|&p| u.clip(p)).collect();
-    rasterise_frame(frame, &clip, path)
+    let mut target = Target::new(
+        frame.width,
+        frame.height,
+        &frame.layout.linear,
+        Options { path },
+    );
+    draw_frame(frame, &mut BatchBuffers::default(), &mut target);
+    target.finish()
 }
 
 /// Rasterises and shades a frame on the CPU.
 pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image, RasterStats) {
     let r = passes.time("raster", || raster(frame, opts.path));
+    shade_pass(frame, r, opts, passes)
+}
+
+/// Shades the raster of `frame` (pass "shade").
+fn shade_pass(
+    frame: &Frame,
+    r: raster::Raster,
+    opts: &RenderOptions,
+    passes: &mut Passes,
+) -> (Image, RasterStats) {
     let rgba = passes.time("shade", || {
         let inputs = ShadeInputs {
             effects: &frame.effects,
@@ -186,6 +234,51 @@ pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image,
     (image, r.stats)
 }
 
+/// The buffers a CPU render fills, kept by its session for the next
+/// render: a survey's views and a flight's frames then reuse the memory of
+/// the first instead of having the kernel map and zero it again each time.
+#[derive(Default)]
+struct Kept {
+    mesh: LodMesh,
+    positions: Vec<[f32; 3]>,
+    attrs: Vec<f32>,
+    buffers: BatchBuffers,
+    target: Option<Target>,
+}
+
+/// Triangles per batch for a scheme whose mesh comes in batches (brute
+/// force): with its vertex stage, clip positions and set-up triangles,
+/// about 0.4 GB, whatever the size of the map.
+pub const BATCH_TRIANGLES: usize = 1 << 20;
+
+/// What the batches of one frame drew, summed: the statistics a frame
+/// drawn whole reads from its one mesh.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Drawn {
+    /// Triangles.
+    pub triangles: usize,
+    /// Vertices (three per triangle).
+    pub vertices: usize,
+    /// Non-finite values of the vertex stage.
+    pub non_finite: usize,
+}
+
+impl Drawn {
+    /// What `frame`'s mesh holds.
+    pub fn of(frame: &Frame) -> Drawn {
+        Drawn {
+            triangles: frame.triangle_count(),
+            vertices: frame.positions.len(),
+            non_finite: frame.non_finite(),
+        }
+    }
+    fn add(&mut self, d: Drawn) {
+        self.triangles += d.triangles;
+        self.vertices += d.vertices;
+        self.non_finite += d.non_finite;
+    }
+}
+
 /// A scene's terrain, loaded once, and its LOD scheme, kept across frames
 /// so a camera path updates it incrementally.
 pub struct Session {
@@ -201,6 +294,12 @@ pub struct Session {
     pub synthesis: Option<Continuation>,
     /// `[gpu] update`: who fills the GPU back end's toroids.
     pub gpu_update: crate::scene::GpuUpdate,
+    /// Triangles per batch where the scheme meshes in batches (brute
+    /// force); [`BATCH_TRIANGLES`] unless set. The image does not depend
+    /// on it, only the memory a render holds.
+    pub batch_triangles: usize,
+    /// The memory of the last CPU render, for the next one.
+    kept: Kept,
     effects: Effects,
     params: ShadeParams,
     size: [u32; 2],
@@ -334,6 +433,8 @@ impl Session {
             filter,
             lod,
             last_update: LodUpdate::default(),
+            batch_triangles: BATCH_TRIANGLES,
+            kept: Kept::default(),
             synthesis: continuation,
             gpu_update: scene.gpu.update,
             effects,
@@ -366,10 +467,14 @@ impl Session {
         }
         let frustum = camera.frustum();
         let view = View::new(camera, &frustum, &self.world, self.size);
-        let lod = &mut self.lod;
-        let mesh = passes.time("mesh", || lod.mesh(&view));
-        let clip = lod.take_clip_frame();
-        let frame = Frame::build(
+        let mesh = passes.time("mesh", || self.lod.mesh(&view));
+        let clip = self.lod.take_clip_frame();
+        Ok((self.build_frame(camera, mesh, passes)?, clip))
+    }
+
+    /// The frame of `mesh`, seen from `camera`.
+    fn build_frame(&self, camera: &Camera, mesh: LodMesh, passes: &mut Passes) -> Result<Frame> {
+        Frame::build(
             FrameInput {
                 pyramid: self.lod.pyramid(),
                 filter: self.filter,
@@ -383,8 +488,7 @@ impl Session {
                 params: &self.params,
             },
             passes,
-        )?;
-        Ok((frame, clip))
+        )
     }
 }
 
@@ -397,11 +501,12 @@ pub fn build_frame(scene: &Scene, passes: &mut Passes) -> Result<Frame> {
 /// Statistics of a render from its frame, image-independent parts.
 pub fn stats(
     frame: &Frame,
+    drawn: Drawn,
     backend: &'static str,
     raster: RasterStats,
     passes: Passes,
 ) -> RenderStats {
-    let normals_computed = frame.layout.normal.map_or(0, |_| frame.positions.len())
+    let normals_computed = frame.layout.normal.map_or(0, |_| drawn.vertices)
         + frame
             .resources
             .normal_maps
@@ -414,12 +519,12 @@ pub fn stats(
         height: frame.height,
         backend,
         lod: frame.lod.clone(),
-        triangles: frame.triangle_count(),
+        triangles: drawn.triangles,
         ms_total: passes.total_ms(),
         passes: passes.0,
         non_finite_vertices: raster.non_finite_vertices,
         non_finite: NonFinite {
-            vertex: frame.non_finite(),
+            vertex: drawn.non_finite,
             clip: raster.non_finite_vertices + raster.non_finite_clipped,
             raster: raster.non_finite_planes + raster.non_finite_depth,
         },
@@ -442,16 +547,89 @@ pub fn render(scene: &Scene, opts: &RenderOptions) -> Result<(Image, RenderStats
 
 impl Session {
     /// Renders `camera`'s view on the CPU; the stats include `passes` so
-    /// far (terrain loading, for a one-off render).
+    /// far (terrain loading, for a one-off render). A scheme that meshes
+    /// in batches ([`Lod::mesh_batch`]) is drawn batch by batch into one
+    /// target, which holds only the triangles pixels still show: the same
+    /// image as the whole mesh drawn at once, in memory that does not grow
+    /// with the map.
     pub fn render(
         &mut self,
         camera: &Camera,
         opts: &RenderOptions,
         mut passes: Passes,
     ) -> Result<(Image, RenderStats)> {
-        let (frame, clip) = self.frame(camera, &mut passes)?;
-        let (image, raster) = draw(&frame, opts, &mut passes);
-        let mut s = stats(&frame, Backend::Cpu.name(), raster, passes);
+        self.update(camera, &mut passes);
+        if let Some(e) = self.pyramid().decode_error() {
+            return Err(e);
+        }
+        let frustum = camera.frustum();
+        let view = View::new(camera, &frustum, &self.world, self.size);
+        let Kept {
+            mut mesh,
+            positions,
+            attrs,
+            mut buffers,
+            target,
+        } = std::mem::take(&mut self.kept);
+        let mut cursor = 0;
+        let batch = self.batch_triangles.max(1);
+        let mut more = passes.time("mesh", || {
+            self.lod.mesh_batch(&view, &mut cursor, batch, &mut mesh)
+        });
+        let clip = self.lod.take_clip_frame();
+        // The frame is made for the view's levels, then given the kept
+        // buffers and the first batch.
+        let levels = LodMesh {
+            level_info: mesh.level_info.clone(),
+            ..Default::default()
+        };
+        let mut frame = self.build_frame(camera, levels, &mut passes)?;
+        frame.positions = positions;
+        frame.attrs = attrs;
+        frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
+        let opts_raster = Options { path: opts.path };
+        let linear = &frame.layout.linear;
+        let mut target = match target {
+            Some(mut t) => {
+                t.reset(frame.width, frame.height, linear, opts_raster);
+                t
+            }
+            None => Target::new(frame.width, frame.height, linear, opts_raster),
+        };
+        let mut drawn = Drawn::default();
+        loop {
+            drawn.add(Drawn::of(&frame));
+            let mut these = Passes::default();
+            these.time("raster", || {
+                draw_frame(&frame, &mut buffers, &mut target);
+                if more {
+                    target.compact();
+                }
+            });
+            passes.add(these);
+            if !more {
+                break;
+            }
+            let mut mesh = std::mem::take(&mut frame.mesh);
+            let mut these = Passes::default();
+            more = these.time("mesh", || {
+                self.lod.mesh_batch(&view, &mut cursor, batch, &mut mesh)
+            });
+            passes.add(these);
+            frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
+        }
+        let mut last = Passes::default();
+        let r = last.time("raster", || target.finish());
+        passes.add(last);
+        let (image, raster) = shade_pass(&frame, r, opts, &mut passes);
+        let mut s = stats(&frame, drawn, Backend::Cpu.name(), raster, passes);
+        self.kept = Kept {
+            mesh: frame.mesh,
+            positions: frame.positions,
+            attrs: frame.attrs,
+            buffers,
+            target: Some(target),
+        };
         s.lazy = self.lazy_frame(clip.as_ref());
         s.raster_path = Some(opts.path.label());
         s.synthesis = self.synthesis.clone();
