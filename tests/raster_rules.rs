@@ -3,7 +3,8 @@
 //! bits for any thread count and for the scalar and 8-lane paths.
 
 use proptest::prelude::*;
-use terraclip::raster::{rasterise, Mesh, Options, Path, Raster, Target, NONE};
+use terraclip::raster::setup::Viewport;
+use terraclip::raster::{fate, rasterise, Fate, Mesh, Options, Path, Raster, Target, NONE};
 
 /// Window position (pixels, y down) to clip space with w = 1, for a target
 /// whose half sizes are powers of two so the viewport FMA is exact.
@@ -284,4 +285,67 @@ proptest! {
         prop_assert!(shown(&batched) == shown(&whole));
         prop_assert_eq!(&batched.stats, &whole.stats);
     }
+}
+
+/// Rasterises the one triangle at `c` and checks that [`fate`] said what
+/// the rasteriser did: `Nothing` is set up to nothing and counted
+/// nowhere, `Rejected` is counted as rejected, and an unclipped finite
+/// triangle it would `Draw` is set up.
+fn fate_agrees(c: [[f32; 4]; 3], w: u32, h: u32) -> Fate {
+    let mesh = Mesh {
+        clip: &c,
+        attrs: &[],
+        linear: &[],
+        triangles: &[[0, 1, 2]],
+        flat: &[0],
+    };
+    let s = rasterise(&mesh, w, h, &Options { path: Path::Scalar }).stats;
+    let f = fate(c, &Viewport::new(w, h));
+    let ok = match f {
+        Fate::Nothing => s.setup == 0 && s.rejected == 0 && s.clipped == 0,
+        Fate::Rejected => s.rejected == 1 && s.setup == 0,
+        Fate::Draw => s.clipped == 1 || s.setup == 1 || s.non_finite_vertices > 0,
+    };
+    assert!(ok, "{f:?} for {c:?} in {w}x{h}: {s:?}");
+    f
+}
+
+/// Triangles from a pixel's size down to far below it, in and around the
+/// clip volume, some non-finite: every fate occurs, each as the
+/// rasteriser decides.
+#[test]
+fn fate_is_what_the_rasteriser_does() {
+    let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut seen = [0usize; 3];
+    for i in 0..6000 {
+        let (w, h) = (1 + (next() * 150.0) as u32, 1 + (next() * 100.0) as u32);
+        let scale = [1.0, 0.2, 0.01, 0.001][i % 4];
+        let v = |next: &mut dyn FnMut() -> f32| {
+            [
+                next() * 2.8 - 1.4,
+                next() * 2.8 - 1.4,
+                next() * 1.5 - 0.3,
+                next() * 2.2 - 0.2,
+            ]
+        };
+        let c0 = v(&mut next);
+        let mut c = [c0, v(&mut next), v(&mut next)];
+        for p in &mut c[1..] {
+            *p = std::array::from_fn(|k| c0[k] + (p[k] - c0[k]) * scale);
+        }
+        if i % 97 == 0 {
+            c[1][i % 4] = f32::NAN;
+        }
+        seen[fate_agrees(c, w, h) as usize] += 1;
+    }
+    assert!(
+        seen.iter().all(|&n| n > 300),
+        "Draw, Rejected, Nothing: {seen:?}"
+    );
 }

@@ -324,16 +324,18 @@ pub fn unorm8(c: f32) -> u8 {
     ((v + 8_388_608.0).to_bits() & 0xff) as u8
 }
 
-/// Sets up one triangle in window space (rules 2–5); None if it has zero
-/// snapped area or covers no pixel centre's bounding box.
-fn setup_one(
-    v: [&WinVertex; 3],
-    attrs: [&[f32]; 3],
-    linear: &[bool],
-    flat: u32,
-    vp: &Viewport,
-    planes: &mut Vec<Plane>,
-) -> Option<Tri> {
+/// A triangle's snapped corners in counter-clockwise order, that order,
+/// and the pixel centres its box holds inside the target; None where the
+/// snapped area is zero or the box holds no pixel centre, so that nothing
+/// the triangle could do would reach a pixel.
+struct Covered {
+    order: [usize; 3],
+    p: [[i64; 2]; 3],
+    bbox: [i32; 4],
+}
+
+#[inline(always)]
+fn covered(v: [&WinVertex; 3], vp: &Viewport) -> Option<Covered> {
     let snapped = v.map(|w| [setup::snap(w.x), setup::snap(w.y)]);
     let area = setup::area(&snapped);
     if area == 0 {
@@ -341,8 +343,6 @@ fn setup_one(
     }
     let order = if area < 0 { [0, 2, 1] } else { [0, 1, 2] };
     let p = order.map(|i| snapped[i]);
-    let w = order.map(|i| *v[i]);
-    let a = order.map(|i| attrs[i]);
     let min_x = p.iter().map(|q| q[0]).min().expect("3");
     let max_x = p.iter().map(|q| q[0]).max().expect("3");
     let min_y = p.iter().map(|q| q[1]).min().expect("3");
@@ -355,6 +355,64 @@ fn setup_one(
     if x0 > x1 || y0 > y1 {
         return None;
     }
+    Some(Covered {
+        order,
+        p,
+        bbox: [x0 as i32, y0 as i32, x1 as i32, y1 as i32],
+    })
+}
+
+/// What [`rasterise`] would do with one triangle, judged from its clip
+/// positions alone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fate {
+    /// It may reach a pixel (or is non-finite, or needs the clipper, which
+    /// the rasteriser decides and counts).
+    Draw,
+    /// Wholly outside one clip plane: counted as rejected, drawn nowhere.
+    Rejected,
+    /// Inside the clip volume but with zero snapped area or no pixel
+    /// centre in its box: set up to nothing, counted nowhere.
+    Nothing,
+}
+
+/// The fate of the triangle at clip positions `c` in a `width`×`height`
+/// target: the same tests, in the same arithmetic, as [`Target::draw`]
+/// makes before it sets a triangle up, so that a caller may leave out the
+/// triangles that cannot reach a pixel before computing their varyings
+/// (what a tiled GPU's position-only pass does) and get the same image.
+#[inline]
+pub fn fate(c: [[f32; 4]; 3], vp: &Viewport) -> Fate {
+    if !c.iter().flatten().all(|v| v.is_finite()) {
+        return Fate::Draw;
+    }
+    let m = c.map(clip::outcode);
+    if m[0] & m[1] & m[2] != 0 {
+        return Fate::Rejected;
+    }
+    if m[0] | m[1] | m[2] != 0 {
+        return Fate::Draw;
+    }
+    let w = c.map(|c| vp.map(c));
+    match covered([&w[0], &w[1], &w[2]], vp) {
+        Some(_) => Fate::Draw,
+        None => Fate::Nothing,
+    }
+}
+
+/// Sets up one triangle in window space (rules 2–5); None if it has zero
+/// snapped area or covers no pixel centre's bounding box.
+fn setup_one(
+    v: [&WinVertex; 3],
+    attrs: [&[f32]; 3],
+    linear: &[bool],
+    flat: u32,
+    vp: &Viewport,
+    planes: &mut Vec<Plane>,
+) -> Option<Tri> {
+    let Covered { order, p, bbox } = covered(v, vp)?;
+    let w = order.map(|i| *v[i]);
+    let a = order.map(|i| attrs[i]);
     let ps = PlaneSetup::new(&w);
     for (k, &lin) in linear.iter().enumerate() {
         let vals = if lin {
@@ -370,7 +428,7 @@ fn setup_one(
             Edge::new(p[1], p[2]),
             Edge::new(p[2], p[0]),
         ],
-        bbox: [x0 as i32, y0 as i32, x1 as i32, y1 as i32],
+        bbox,
         z: ps.plane([w[0].z, w[1].z, w[2].z]),
         oow: ps.plane([w[0].oow, w[1].oow, w[2].oow]),
         flat,
@@ -609,6 +667,14 @@ impl Target {
                     }
                 }
             });
+    }
+
+    /// Counts triangles a caller left out because their [`fate`] was
+    /// `Rejected` or `Nothing`, so that the statistics are those of
+    /// drawing them.
+    pub fn left_out(&mut self, rejected: usize, nothing: usize) {
+        self.stats.input_triangles += rejected + nothing;
+        self.stats.rejected += rejected;
     }
 
     /// Drops the set-up triangles that no pixel shows any more and

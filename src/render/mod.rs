@@ -8,13 +8,16 @@ pub mod gpu;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::frame::stats::{Pass, Passes};
+use crate::frame::vertex::VertexUniforms;
 use crate::frame::{Frame, FrameInput};
 use crate::lod::LodMesh;
+use crate::lod::LodVertex;
 use crate::lod::{Lod, LodConfig, LodUpdate, View};
 use crate::pack::reader::PackReader;
 use crate::pyramid::Filter;
 use crate::pyramid::{LazyBase, LazyStats, Pyramid};
-use crate::raster::{self, Mesh, Options, Path, RasterStats, Target};
+use crate::raster::setup::Viewport;
+use crate::raster::{self, Fate, Mesh, Options, Path, RasterStats, Target};
 use crate::scene::Scene;
 use crate::shade::{self, ShadeInputs};
 use crate::shade::{Effects, ShadeParams};
@@ -173,6 +176,7 @@ fn draw_clipped(frame: &Frame, clip: &[[f32; 4]], tris: &mut Vec<[u32; 3]>, targ
 struct BatchBuffers {
     clip: Vec<[f32; 4]>,
     tris: Vec<[u32; 3]>,
+    fates: Vec<Fate>,
 }
 
 /// The vertex stage's clip positions of `frame`, then its triangles, into
@@ -272,11 +276,62 @@ impl Drawn {
             non_finite: frame.non_finite(),
         }
     }
-    fn add(&mut self, d: Drawn) {
-        self.triangles += d.triangles;
-        self.vertices += d.vertices;
-        self.non_finite += d.non_finite;
+}
+
+/// Leaves out of `mesh` the triangles that cannot reach a pixel
+/// ([`raster::fate`]), counting them in `target` as drawing them would,
+/// before the vertex stage computes their varyings. Brute force of a large
+/// map in a small image is mostly triangles smaller than a pixel, which
+/// cover no pixel centre; their varyings and normals were most of its
+/// time. The positions are computed as the vertex stage computes them, so
+/// the triangles kept and the image are the same.
+fn cull(
+    mesh: &mut LodMesh,
+    u: &VertexUniforms,
+    vp: &Viewport,
+    buffers: &mut BatchBuffers,
+    target: &mut Target,
+    path: Path,
+) {
+    const CHUNK: usize = 4096;
+    let fates = &mut buffers.fates;
+    fates.clear();
+    fates.resize(mesh.triangle_count(), Fate::Draw);
+    let fast = path.uses_avx2_fma();
+    fates
+        .par_chunks_mut(CHUNK)
+        .zip(mesh.vertices.par_chunks(3 * CHUNK))
+        .for_each(|(f, v)| fates_of(fast, v, u, vp, f));
+    let (mut rejected, mut nothing, mut kept) = (0, 0, 0);
+    for (t, f) in fates.iter().enumerate() {
+        match f {
+            Fate::Draw => {
+                mesh.vertices.copy_within(3 * t..3 * t + 3, 3 * kept);
+                mesh.levels[kept] = mesh.levels[t];
+                kept += 1;
+            }
+            Fate::Rejected => rejected += 1,
+            Fate::Nothing => nothing += 1,
+        }
     }
+    mesh.vertices.truncate(3 * kept);
+    mesh.levels.truncate(kept);
+    target.left_out(rejected, nothing);
+}
+
+#[inline(always)]
+fn fates_in(v: &[LodVertex], u: &VertexUniforms, vp: &Viewport, out: &mut [Fate]) {
+    for (t, f) in v.chunks_exact(3).zip(out) {
+        let c = [0, 1, 2].map(|j| u.clip(u.position(&t[j])));
+        *f = raster::fate(c, vp);
+    }
+}
+
+crate::cpu::avx2_fma_twin! {
+    /// [`raster::fate`] of each triangle of `v`, in the AVX2 + FMA build
+    /// when `fast` (the same bits: the viewport's multiply-add is fused in
+    /// both).
+    fn fates_of(v: &[LodVertex], u: &VertexUniforms, vp: &Viewport, out: &mut [Fate]) => fates_in
 }
 
 /// A scene's terrain, loaded once, and its LOD scheme, kept across frames
@@ -586,7 +641,6 @@ impl Session {
         let mut frame = self.build_frame(camera, levels, &mut passes)?;
         frame.positions = positions;
         frame.attrs = attrs;
-        frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
         let opts_raster = Options { path: opts.path };
         let linear = &frame.layout.linear;
         let mut target = match target {
@@ -596,9 +650,24 @@ impl Session {
             }
             None => Target::new(frame.width, frame.height, linear, opts_raster),
         };
+        let vp = Viewport::new(frame.width, frame.height);
         let mut drawn = Drawn::default();
+        drawn.triangles += mesh.triangle_count();
+        passes.time("cull", || {
+            cull(
+                &mut mesh,
+                &frame.uniforms,
+                &vp,
+                &mut buffers,
+                &mut target,
+                opts.path,
+            )
+        });
+        frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
         loop {
-            drawn.add(Drawn::of(&frame));
+            let d = Drawn::of(&frame);
+            drawn.vertices += d.vertices;
+            drawn.non_finite += d.non_finite;
             let mut these = Passes::default();
             these.time("raster", || {
                 draw_frame(&frame, &mut buffers, &mut target);
@@ -614,6 +683,17 @@ impl Session {
             let mut these = Passes::default();
             more = these.time("mesh", || {
                 self.lod.mesh_batch(&view, &mut cursor, batch, &mut mesh)
+            });
+            drawn.triangles += mesh.triangle_count();
+            these.time("cull", || {
+                cull(
+                    &mut mesh,
+                    &frame.uniforms,
+                    &vp,
+                    &mut buffers,
+                    &mut target,
+                    opts.path,
+                )
             });
             passes.add(these);
             frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
