@@ -402,6 +402,7 @@ pub fn fate(c: [[f32; 4]; 3], vp: &Viewport) -> Fate {
 
 /// Sets up one triangle in window space (rules 2–5); None if it has zero
 /// snapped area or covers no pixel centre's bounding box.
+#[inline(always)]
 fn setup_one(
     v: [&WinVertex; 3],
     attrs: [&[f32]; 3],
@@ -463,6 +464,9 @@ pub struct Target {
     tris: Vec<Tri>,
     planes: Vec<Plane>,
     stats: RasterStats,
+    /// Nothing drawn since the last reset: `depth` and `prim` hold no
+    /// values yet, and the first draw writes every tile, cleared or drawn.
+    fresh: bool,
     scratch: Scratch,
 }
 
@@ -491,6 +495,7 @@ impl Target {
             tris: vec![],
             planes: vec![],
             stats: RasterStats::default(),
+            fresh: true,
             scratch: Scratch::default(),
         };
         t.reset(width, height, linear, opts);
@@ -504,10 +509,11 @@ impl Target {
         let len = width as usize * height as usize;
         (self.width, self.height, self.opts) = (width, height, opts);
         self.linear = linear.to_vec();
-        self.depth.clear();
+        // The values are written by the first draw (or by `finish`, if
+        // none comes), so the buffers are only sized here.
         self.depth.resize(len, 1.0);
-        self.prim.clear();
         self.prim.resize(len, NONE);
+        self.fresh = true;
         self.tris.clear();
         self.planes.clear();
         self.stats = RasterStats::default();
@@ -525,20 +531,24 @@ impl Target {
         assert_eq!(mesh.flat.len(), mesh.triangles.len(), "flat count");
         let vp = Viewport::new(self.width, self.height);
         let sc = &mut self.scratch;
-        mesh.clip
-            .par_iter()
-            .map(|c| c.iter().all(|v| v.is_finite()))
-            .collect_into_vec(&mut sc.finite);
-        mesh.clip
-            .par_iter()
-            .map(|&c| clip::outcode(c))
-            .collect_into_vec(&mut sc.masks);
-        mesh.clip
-            .par_iter()
-            .map(|&c| vp.map(c))
-            .collect_into_vec(&mut sc.wins);
-        let (finite, masks, wins) = (&sc.finite, &sc.masks, &sc.wins);
-        let attrs_of = |i: u32| &mesh.attrs[i as usize * n..i as usize * n + n];
+        let fast = self.opts.path.uses_avx2_fma();
+        let len = mesh.clip.len();
+        sc.finite.resize(len, false);
+        sc.masks.resize(len, 0);
+        sc.wins.resize(len, WinVertex::default());
+        sc.finite
+            .par_chunks_mut(SETUP_CHUNK)
+            .zip(sc.masks.par_chunks_mut(SETUP_CHUNK))
+            .zip(sc.wins.par_chunks_mut(SETUP_CHUNK))
+            .zip(mesh.clip.par_chunks(SETUP_CHUNK))
+            .for_each(|(((f, m), w), c)| map_vertices(fast, c, &vp, f, m, w));
+        let vertices = Vertices {
+            mesh,
+            finite: &sc.finite,
+            masks: &sc.masks,
+            wins: &sc.wins,
+            vp: &vp,
+        };
 
         // The chunks' buffers are kept too: a batch of the same size as the
         // last one reuses them (their order, not which one, decides where
@@ -550,55 +560,8 @@ impl Target {
             .par_iter_mut()
             .zip(mesh.triangles.par_chunks(SETUP_CHUNK))
             .zip(mesh.flat.par_chunks(SETUP_CHUNK))
-            .for_each(|((c, tris), flats)| {
-                c.clear();
-                let mut fan = Vec::new();
-                for (t, &flat) in tris.iter().zip(flats) {
-                    if !t.iter().all(|&i| finite[i as usize]) {
-                        continue;
-                    }
-                    let m = t.map(|i| masks[i as usize]);
-                    if m[0] & m[1] & m[2] != 0 {
-                        c.rejected += 1;
-                        continue;
-                    }
-                    let or = m[0] | m[1] | m[2];
-                    if or == 0 {
-                        let v = t.map(|i| &wins[i as usize]);
-                        let a = t.map(attrs_of);
-                        if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
-                            c.tris.push(s);
-                        }
-                        continue;
-                    }
-                    c.clipped += 1;
-                    let cv = t.map(|i| {
-                        let mut a = [0.0; MAX_VARYINGS];
-                        a[..n].copy_from_slice(attrs_of(i));
-                        ClipVertex {
-                            clip: mesh.clip[i as usize],
-                            win: wins[i as usize],
-                            attrs: a,
-                        }
-                    });
-                    fan.clear();
-                    c.non_finite_clipped += clip::clip_triangle(
-                        [&cv[0], &cv[1], &cv[2]],
-                        or,
-                        n,
-                        mesh.linear,
-                        &vp,
-                        &mut fan,
-                    );
-                    for f in &fan {
-                        let v = [&f[0].win, &f[1].win, &f[2].win];
-                        let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
-                        if let Some(s) = setup_one(v, a, mesh.linear, flat, &vp, &mut c.planes) {
-                            c.tris.push(s);
-                        }
-                    }
-                }
-            });
+            .for_each(|((c, tris), flats)| setup_chunk(fast, &vertices, tris, flats, c));
+        let finite = &sc.finite;
 
         let stats = &mut self.stats;
         stats.input_triangles += mesh.triangles.len();
@@ -625,10 +588,12 @@ impl Target {
         let (tiles_x, _) = bin::grid(self.width, self.height);
         let path = self.opts.path;
         let avx2 = path.uses_avx2_fma();
+        let fresh = std::mem::replace(&mut self.fresh, false);
         // One band of 64 rows per task: each of its tiles with triangles
-        // in this batch is read into a reused tile buffer, drawn and
-        // copied back, so the full-size buffers are touched only where
-        // something is drawn, in parallel.
+        // in this batch is read into a reused tile buffer (cleared, on a
+        // fresh target), drawn and copied back, so the full-size buffers
+        // are written once per batch where something is drawn (and once
+        // everywhere by the first), in parallel.
         let w = self.width as usize;
         let band = w * bin::TILE as usize;
         self.depth
@@ -640,16 +605,21 @@ impl Target {
                 let h = depth.len() / w;
                 for bx in 0..tiles_x {
                     let ids = &bins[(by as u32 * tiles_x + bx) as usize];
-                    if ids.is_empty() {
+                    if ids.is_empty() && !fresh {
                         continue;
                     }
                     let tx0 = bx * bin::TILE;
                     let tw = (w - tx0 as usize).min(bin::TILE as usize);
-                    for r in 0..h {
-                        let at = r * w + tx0 as usize;
-                        let to = r * tile::STRIDE;
-                        buf.depth[to..to + tw].copy_from_slice(&depth[at..at + tw]);
-                        buf.prim[to..to + tw].copy_from_slice(&prim[at..at + tw]);
+                    if fresh {
+                        buf.depth.fill(1.0);
+                        buf.prim.fill(NONE);
+                    } else {
+                        for r in 0..h {
+                            let at = r * w + tx0 as usize;
+                            let to = r * tile::STRIDE;
+                            buf.depth[to..to + tw].copy_from_slice(&depth[at..at + tw]);
+                            buf.prim[to..to + tw].copy_from_slice(&prim[at..at + tw]);
+                        }
                     }
                     for &id in ids {
                         let t = &tris[id as usize];
@@ -682,6 +652,9 @@ impl Target {
     /// can only hide a triangle, never show one again, so the target then
     /// holds at most one triangle per pixel however many were drawn.
     pub fn compact(&mut self) {
+        if self.fresh {
+            return;
+        }
         let keep = &mut self.scratch.keep;
         keep.clear();
         keep.resize(self.tris.len(), NONE);
@@ -718,6 +691,10 @@ impl Target {
 
     /// The finished raster; the target is empty until [`Target::reset`].
     pub fn finish(&mut self) -> Raster {
+        if std::mem::replace(&mut self.fresh, false) {
+            self.depth.fill(1.0);
+            self.prim.fill(NONE);
+        }
         let (covered, bad) = self
             .prim
             .par_iter()
@@ -737,6 +714,106 @@ impl Target {
             stats: std::mem::take(&mut self.stats),
         }
     }
+}
+
+/// One batch's vertices as set-up reads them.
+struct Vertices<'a> {
+    mesh: &'a Mesh<'a>,
+    finite: &'a [bool],
+    masks: &'a [u32],
+    wins: &'a [WinVertex],
+    vp: &'a Viewport,
+}
+
+/// Per vertex: whether its clip position is finite, its outcode and its
+/// window position.
+#[inline(always)]
+fn map_vertices_in(
+    clip: &[[f32; 4]],
+    vp: &Viewport,
+    finite: &mut [bool],
+    masks: &mut [u32],
+    wins: &mut [WinVertex],
+) {
+    for (i, &c) in clip.iter().enumerate() {
+        finite[i] = c.iter().all(|v| v.is_finite());
+        masks[i] = clip::outcode(c);
+        wins[i] = vp.map(c);
+    }
+}
+
+/// Sets up the triangles `tris` into `c`, in submission order.
+#[inline(always)]
+fn setup_chunk_in(v: &Vertices, tris: &[[u32; 3]], flats: &[u32], c: &mut Chunk) {
+    let Vertices {
+        mesh,
+        finite,
+        masks,
+        wins,
+        vp,
+    } = *v;
+    let n = mesh.linear.len();
+    let attrs_of = |i: u32| &mesh.attrs[i as usize * n..i as usize * n + n];
+    c.clear();
+    let mut fan = Vec::new();
+    for (t, &flat) in tris.iter().zip(flats) {
+        if !t.iter().all(|&i| finite[i as usize]) {
+            continue;
+        }
+        let m = t.map(|i| masks[i as usize]);
+        if m[0] & m[1] & m[2] != 0 {
+            c.rejected += 1;
+            continue;
+        }
+        let or = m[0] | m[1] | m[2];
+        if or == 0 {
+            let v = t.map(|i| &wins[i as usize]);
+            let a = t.map(attrs_of);
+            if let Some(s) = setup_one(v, a, mesh.linear, flat, vp, &mut c.planes) {
+                c.tris.push(s);
+            }
+            continue;
+        }
+        c.clipped += 1;
+        let cv = t.map(|i| {
+            let mut a = [0.0; MAX_VARYINGS];
+            a[..n].copy_from_slice(attrs_of(i));
+            ClipVertex {
+                clip: mesh.clip[i as usize],
+                win: wins[i as usize],
+                attrs: a,
+            }
+        });
+        fan.clear();
+        c.non_finite_clipped +=
+            clip::clip_triangle([&cv[0], &cv[1], &cv[2]], or, n, mesh.linear, vp, &mut fan);
+        for f in &fan {
+            let v = [&f[0].win, &f[1].win, &f[2].win];
+            let a = [&f[0].attrs[..n], &f[1].attrs[..n], &f[2].attrs[..n]];
+            if let Some(s) = setup_one(v, a, mesh.linear, flat, vp, &mut c.planes) {
+                c.tris.push(s);
+            }
+        }
+    }
+}
+
+crate::cpu::avx2_fma_twin! {
+    /// [`map_vertices_in`], in the AVX2 + FMA build when `fast`: the
+    /// viewport's multiply-add and the snap's rounding are then
+    /// instructions rather than calls into the maths library, with the
+    /// same bits.
+    fn map_vertices(
+        clip: &[[f32; 4]],
+        vp: &Viewport,
+        finite: &mut [bool],
+        masks: &mut [u32],
+        wins: &mut [WinVertex],
+    ) => map_vertices_in
+}
+
+crate::cpu::avx2_fma_twin! {
+    /// [`setup_chunk_in`], in the AVX2 + FMA build when `fast`.
+    fn setup_chunk(v: &Vertices, tris: &[[u32; 3]], flats: &[u32], c: &mut Chunk) => setup_chunk_in
 }
 
 /// Triangles per set-up task.

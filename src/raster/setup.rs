@@ -5,7 +5,7 @@
 //! different order (or a fused multiply-add where none is meant) changes bits.
 
 /// A vertex in window space: y down, depth in [0, 1], and 1/w.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct WinVertex {
     /// Column in pixels, from the left edge.
     pub x: f32,
