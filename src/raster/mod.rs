@@ -567,7 +567,11 @@ impl Target {
         stats.input_triangles += mesh.triangles.len();
         stats.non_finite_vertices += finite.iter().filter(|f| !**f).count();
         let first = self.tris.len();
-        for c in &sc.chunks[..chunk_count] {
+        let chunks = &sc.chunks[..chunk_count];
+        let count: usize = chunks.iter().map(|c| c.tris.len()).sum();
+        self.tris.reserve(count);
+        self.planes.reserve(count * n);
+        for c in chunks {
             stats.rejected += c.rejected;
             stats.clipped += c.clipped;
             stats.non_finite_clipped += c.non_finite_clipped;
@@ -682,6 +686,26 @@ impl Target {
                 *p = keep[*p as usize];
             }
         });
+    }
+
+    /// Takes back the buffers of a raster this target finished (all but
+    /// the depth, which the image keeps), so the next image reuses them.
+    pub fn recycle(&mut self, r: Raster) {
+        let Raster {
+            mut prim,
+            mut tris,
+            mut planes,
+            ..
+        } = r;
+        if prim.capacity() > self.prim.capacity() {
+            std::mem::swap(&mut prim, &mut self.prim);
+        }
+        tris.clear();
+        planes.clear();
+        if tris.capacity() > self.tris.capacity() {
+            self.tris = tris;
+            self.planes = planes;
+        }
     }
 
     /// Set-up triangles held now.

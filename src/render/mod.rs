@@ -208,15 +208,17 @@ pub fn raster(frame: &Frame, path: raster::Path) -> raster::Raster {
 /// Rasterises and shades a frame on the CPU.
 pub fn draw(frame: &Frame, opts: &RenderOptions, passes: &mut Passes) -> (Image, RasterStats) {
     let r = passes.time("raster", || raster(frame, opts.path));
-    shade_pass(frame, r, opts, passes)
+    shade_pass(frame, r, opts, passes, None)
 }
 
 /// Shades the raster of `frame` (pass "shade").
+/// The raster's buffers but the depth go back to `recycle`, if given.
 fn shade_pass(
     frame: &Frame,
-    r: raster::Raster,
+    mut r: raster::Raster,
     opts: &RenderOptions,
     passes: &mut Passes,
+    recycle: Option<&mut Target>,
 ) -> (Image, RasterStats) {
     let rgba = passes.time("shade", || {
         let inputs = ShadeInputs {
@@ -233,9 +235,13 @@ fn shade_pass(
         width: frame.width,
         height: frame.height,
         rgba,
-        depth: r.depth,
+        depth: std::mem::take(&mut r.depth),
     };
-    (image, r.stats)
+    let stats = std::mem::take(&mut r.stats);
+    if let Some(t) = recycle {
+        t.recycle(r);
+    }
+    (image, stats)
 }
 
 /// The buffers a CPU render fills, kept by its session for the next
@@ -701,7 +707,7 @@ impl Session {
         let mut last = Passes::default();
         let r = last.time("raster", || target.finish());
         passes.add(last);
-        let (image, raster) = shade_pass(&frame, r, opts, &mut passes);
+        let (image, raster) = shade_pass(&frame, r, opts, &mut passes, Some(&mut target));
         let mut s = stats(&frame, drawn, Backend::Cpu.name(), raster, passes);
         self.kept = Kept {
             mesh: frame.mesh,
@@ -714,6 +720,36 @@ impl Session {
         s.raster_path = Some(opts.path.label());
         s.synthesis = self.synthesis.clone();
         Ok((image, s))
+    }
+
+    /// Rasterises and shades `frame` on the CPU as [`draw`] does, in the
+    /// buffers this session keeps from image to image: for a caller that
+    /// draws frames of its own one after another (a survey's schemes,
+    /// `bench`), whose buffers would otherwise be mapped and zeroed by the
+    /// kernel again for each.
+    pub fn draw(
+        &mut self,
+        frame: &Frame,
+        opts: &RenderOptions,
+        passes: &mut Passes,
+    ) -> (Image, RasterStats) {
+        let mut kept = std::mem::take(&mut self.kept);
+        let linear = &frame.layout.linear;
+        let o = Options { path: opts.path };
+        let target = match &mut kept.target {
+            Some(t) => {
+                t.reset(frame.width, frame.height, linear, o);
+                t
+            }
+            none => none.insert(Target::new(frame.width, frame.height, linear, o)),
+        };
+        let r = passes.time("raster", || {
+            draw_frame(frame, &mut kept.buffers, target);
+            target.finish()
+        });
+        let out = shade_pass(frame, r, opts, passes, Some(target));
+        self.kept = kept;
+        out
     }
 
     /// The lazy pyramid's state after the frame `clip` was updated for.

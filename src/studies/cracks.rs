@@ -26,7 +26,7 @@ use crate::clipmap::Layout;
 use crate::error::{Error, Result};
 use crate::frame::stats::Passes;
 use crate::frame::surface::Surface;
-use crate::render::{self, Image, RenderOptions, Session};
+use crate::render::{Image, RenderOptions, Session};
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::shard::Shard;
 use crate::studies::metrics;
@@ -163,7 +163,7 @@ pub fn survey(
         for (s, r) in sessions.iter_mut().zip(out.iter_mut()) {
             let (frame, _) = s.frame(cam, &mut Passes::default())?;
             r.triangles += frame.triangle_count();
-            let (img, _) = render::draw(&frame, &opts, &mut Passes::default());
+            let (img, _) = s.draw(&frame, &opts, &mut Passes::default());
             let candidates = metrics::crack_candidates(&img, &reference, [255, 0, 0]);
             let (mut c, mut sky, mut far) = (0, 0, 0);
             if !candidates.is_empty() {
