@@ -246,6 +246,35 @@ impl Raster {
         }
     }
 
+    /// Asks the CPU to bring triangle `id`'s set-up and planes into cache
+    /// (nothing for [`NONE`], or off x86-64): a hint, which changes no
+    /// result.
+    #[inline(always)]
+    pub fn prefetch(&self, id: u32) {
+        #[cfg(target_arch = "x86_64")]
+        if let Some(t) = self.tris.get(id as usize) {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let n = self.linear.len();
+            let planes = &self.planes[id as usize * n..id as usize * n + n];
+            let line = |p: *const u8, bytes: usize| {
+                for off in (0..bytes).step_by(64) {
+                    // SAFETY: a prefetch reads nothing and cannot fault;
+                    // the address lies inside (or one line past) a live
+                    // borrow.
+                    unsafe { _mm_prefetch(p.wrapping_add(off) as *const i8, _MM_HINT_T0) };
+                }
+                // The last byte's line, where the span straddles one more.
+                unsafe { _mm_prefetch(p.wrapping_add(bytes - 1) as *const i8, _MM_HINT_T0) };
+            };
+            line(t as *const Tri as *const u8, std::mem::size_of::<Tri>());
+            if n > 0 {
+                line(planes.as_ptr() as *const u8, std::mem::size_of_val(planes));
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = id;
+    }
+
     /// Plane `k` of triangle `id` (its screen gradient, for wireframe width).
     pub fn plane(&self, id: u32, k: usize) -> Plane {
         self.planes[id as usize * self.linear.len() + k]

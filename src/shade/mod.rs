@@ -322,6 +322,8 @@ struct Scratch {
     vary: Vec<f32>,
     winv: Vec<f32>,
     level: Vec<u32>,
+    /// The row's runs of pixels that share a triangle: (first, end).
+    runs: Vec<(usize, usize)>,
 }
 
 impl Scratch {
@@ -333,6 +335,7 @@ impl Scratch {
             vary: vec![0.0; stride * varyings],
             winv: vec![0.0; stride],
             level: vec![0; stride],
+            runs: Vec::with_capacity(width),
         }
     }
     #[inline(always)]
@@ -552,17 +555,29 @@ fn pack(r: u8, g: u8, b: u8) -> u32 {
 fn shade_row(s: &ShadeInputs, r: &Raster, py: usize, row: &mut [u8], sc: &mut Scratch) {
     let w = r.width as usize;
     let ids = &r.prim[py * w..py * w + w];
+    let mut runs = std::mem::take(&mut sc.runs);
+    runs.clear();
     let mut x = 0;
     while x < w {
-        let id = ids[x];
         let end = run_end(ids, x);
+        runs.push((x, end));
+        x = end;
+    }
+    // A row's triangles lie anywhere in the set-up order, so each run's
+    // planes are a cache miss; asking for the planes of the run after next
+    // while this one is interpolated hides most of the wait.
+    for (i, &(x, end)) in runs.iter().enumerate() {
+        if let Some(&(ahead, _)) = runs.get(i + 2) {
+            r.prefetch(ids[ahead]);
+        }
+        let id = ids[x];
         if id != NONE {
             let stride = sc.stride;
             r.interpolate_run(id, x..end, py as u32, &mut sc.winv, &mut sc.vary, stride);
             sc.level[x..end].fill(r.tris[id as usize].flat);
         }
-        x = end;
     }
+    sc.runs = runs;
     let [br, bgreen, bb] = s.background.map(unorm8);
     let bg = pack(br, bgreen, bb);
     for x in (0..w).step_by(LANES) {
