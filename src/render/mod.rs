@@ -381,10 +381,40 @@ impl Session {
     /// the tiles they need. Each stage builds itself from its part of the
     /// scene; errors come back naming the scene and the field.
     pub fn new(scene: &Scene, passes: &mut Passes) -> Result<Session> {
-        Self::build(scene, passes).map_err(|e| scene.named(e))
+        Self::build(scene, None, passes).map_err(|e| scene.named(e))
     }
 
-    fn build(scene: &Scene, passes: &mut Passes) -> Result<Session> {
+    /// The heightmap a session of `scene` would load whole (None for a
+    /// pack or a lazy pyramid, which are read as the view needs them):
+    /// loaded once, it can be given to [`Session::with_map`] for each of
+    /// several sessions of the same terrain, as a survey of several
+    /// schemes makes.
+    pub fn load_map(scene: &Scene) -> Result<Option<terrain::Heightmap>> {
+        let pack = crate::pack::file::pack_path(&scene.terrain, &scene.base_dir);
+        if pack.is_some() || scene.pyramid.lazy {
+            return Ok(None);
+        }
+        terrain::load(&scene.terrain, &scene.base_dir)
+            .map(Some)
+            .map_err(|e| scene.named(e))
+    }
+
+    /// [`Session::new`], with `map` (from [`Session::load_map`] of a scene
+    /// with the same terrain) in place of loading the terrain again; its
+    /// own pyramid is built from it, with the levels its scheme needs.
+    pub fn with_map(
+        scene: &Scene,
+        map: Option<&terrain::Heightmap>,
+        passes: &mut Passes,
+    ) -> Result<Session> {
+        Self::build(scene, map, passes).map_err(|e| scene.named(e))
+    }
+
+    fn build(
+        scene: &Scene,
+        map: Option<&terrain::Heightmap>,
+        passes: &mut Passes,
+    ) -> Result<Session> {
         let mut filter = scene.pyramid.filter;
         let effects = Effects::from_list(&scene.effects).map_err(|r| Error::value("effects", r))?;
         let cfg = LodConfig::from_spec(&scene.lod, effects.morph)?;
@@ -455,7 +485,12 @@ impl Session {
                 .map_err(|r| Error::value("pyramid", r))?;
             (p, world)
         } else {
-            let h = passes.time("terrain", || terrain::load(&scene.terrain, &scene.base_dir))?;
+            let h = match map {
+                Some(m) => passes.time("terrain", || m.clone()),
+                None => {
+                    passes.time("terrain", || terrain::load(&scene.terrain, &scene.base_dir))?
+                }
+            };
             let world = WorldMap::for_terrain(&scene.terrain, h.cell_size);
             let count = base_levels(h.width(), h.height());
             let p = passes.time("pyramid", || Pyramid::from_heightmap(h, filter, count));

@@ -124,14 +124,18 @@ pub fn survey(
 ) -> Result<CrackReport> {
     let base = survey_scene(scene, size);
     let opts = RenderOptions::default();
-    let mut brute = Session::new(
+    // The map is loaded (or generated) once for every scheme.
+    let map = Session::load_map(&base)?;
+    let mut brute = Session::with_map(
         &base.with_scheme(LodScheme::BruteForce, None)?,
+        map.as_ref(),
         &mut Passes::default(),
     )?;
     let mut sessions = schemes
         .iter()
-        .map(|s| Session::new(&base.with_lod(s)?, &mut Passes::default()))
+        .map(|s| Session::with_map(&base.with_lod(s)?, map.as_ref(), &mut Passes::default()))
         .collect::<Result<Vec<_>>>()?;
+    drop(map);
     let cams = views::random_views(&brute, &base.camera(), count, 0x5EED_CAFE);
     let mut out: Vec<SchemeCracks> = schemes
         .iter()
