@@ -48,7 +48,8 @@ pub struct Row {
     pub ms_lod: f64,
     /// Mesh generation (ms).
     pub ms_mesh: f64,
-    /// Vertex stage (ms).
+    /// Vertex stage, with the CPU back end's cull of triangles that
+    /// cannot reach a pixel, and the effects' precomputations (ms).
     pub ms_vertex: f64,
     /// Rasterisation (ms).
     pub ms_raster: f64,
@@ -361,7 +362,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             ms += stats.ms_total;
             parts[0] += stats.pass_ms(&["lod"]);
             parts[1] += stats.pass_ms(&["mesh"]);
-            parts[2] += stats.pass_ms(&["vertex", "normals", "normal-map", "lightmap"]);
+            parts[2] += stats.pass_ms(&["cull", "vertex", "normals", "normal-map", "lightmap"]);
             parts[3] += stats.pass_ms(&["raster"]);
             parts[4] += stats.pass_ms(&["shade"]);
             tris += triangles as f64;
