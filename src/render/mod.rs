@@ -693,19 +693,27 @@ impl Session {
         };
         let vp = Viewport::new(frame.width, frame.height);
         let mut drawn = Drawn::default();
-        drawn.triangles += mesh.triangle_count();
-        passes.time("cull", || {
-            cull(
-                &mut mesh,
-                &frame.uniforms,
-                &vp,
-                &mut buffers,
-                &mut target,
-                opts.path,
-            )
-        });
-        frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
+        let mut first = Some(mesh);
         loop {
+            let mut these = Passes::default();
+            let mut mesh = match first.take() {
+                Some(m) => m,
+                None if more => {
+                    let mut m = std::mem::take(&mut frame.mesh);
+                    more = these.time("mesh", || {
+                        self.lod.mesh_batch(&view, &mut cursor, batch, &mut m)
+                    });
+                    m
+                }
+                None => break,
+            };
+            drawn.triangles += mesh.triangle_count();
+            let (u, path) = (&frame.uniforms, opts.path);
+            these.time("cull", || {
+                cull(&mut mesh, u, &vp, &mut buffers, &mut target, path)
+            });
+            passes.add(these);
+            frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
             let d = Drawn::of(&frame);
             drawn.vertices += d.vertices;
             drawn.non_finite += d.non_finite;
@@ -717,27 +725,6 @@ impl Session {
                 }
             });
             passes.add(these);
-            if !more {
-                break;
-            }
-            let mut mesh = std::mem::take(&mut frame.mesh);
-            let mut these = Passes::default();
-            more = these.time("mesh", || {
-                self.lod.mesh_batch(&view, &mut cursor, batch, &mut mesh)
-            });
-            drawn.triangles += mesh.triangle_count();
-            these.time("cull", || {
-                cull(
-                    &mut mesh,
-                    &frame.uniforms,
-                    &vp,
-                    &mut buffers,
-                    &mut target,
-                    opts.path,
-                )
-            });
-            passes.add(these);
-            frame.next_batch(mesh, self.lod.pyramid(), &self.world, &mut passes);
         }
         let mut last = Passes::default();
         let r = last.time("raster", || target.finish());
