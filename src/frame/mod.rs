@@ -179,7 +179,7 @@ impl Frame {
         world: &WorldMap,
         passes: &mut Passes,
     ) {
-        debug_assert_eq!(mesh.level_info, self.mesh.level_info, "one view's batches");
+        debug_assert_eq!(mesh.level_info, self.resources.levels, "one view's batches");
         self.mesh = mesh;
         let mut these = Passes::default();
         self.vertex_stage(pyramid, world, &mut these);
