@@ -30,6 +30,7 @@ fn no_crack_pixels_in_any_scheme_but_the_annulus() {
         "geomipmap",
         "roam",
         "cdlod",
+        "cbt",
     ];
     let r = run(true, &schemes, 200);
     for s in &r.schemes {
@@ -43,6 +44,20 @@ fn no_crack_pixels_in_any_scheme_but_the_annulus() {
             s.lod, s.crack_pixels, s.worst_view, s.worst_camera
         );
     }
+}
+
+/// Longest-edge bisection is conforming by construction (each split takes
+/// its hypotenuse neighbour with it), so a thousand views show no hole.
+#[test]
+fn cbt_has_no_holes_in_a_thousand_views() {
+    let r = run(true, &["cbt"], 1000);
+    let c = &r.schemes[0];
+    assert!(
+        c.triangles > 1000 * 500,
+        "{} triangles over 1000 views",
+        c.triangles
+    );
+    assert_eq!(c.crack_pixels, 0, "worst camera {:?}", c.worst_camera);
 }
 
 #[test]
@@ -132,7 +147,7 @@ fn removed_triangles_are_holes() {
 /// Over levels synthesised finer than the map (the clipmap's made a tile
 /// at a time, the brute-force reference's whole), no scheme that
 /// `docs/explanation/synthesis.md` names as crack-free cracks (clipmap strips and
-/// footprints, GeoMipMapping, ROAM, CDLOD), the annulus does (it cracks
+/// footprints, GeoMipMapping, ROAM, CDLOD, CBT), the annulus does (it cracks
 /// everywhere, by design), and with morph off the clipmap's synthesised
 /// rings do: the detector still sees them.
 #[test]
@@ -150,6 +165,7 @@ fn synthesised_levels_do_not_crack() {
             "roam",
             "cdlod",
             "annulus",
+            "cbt",
         ]),
         24,
         [96, 64],
@@ -157,7 +173,7 @@ fn synthesised_levels_do_not_crack() {
         || {},
     )
     .unwrap();
-    assert_eq!(r.schemes.len(), 6);
+    assert_eq!(r.schemes.len(), 7);
     for c in &r.schemes {
         if c.lod.starts_with("annulus") {
             assert!(c.crack_pixels > 0, "the annulus cracks by design");

@@ -7,6 +7,7 @@ use proptest::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
 use terraclip::camera::Camera;
+use terraclip::lod::cbt::{self, Cbt};
 use terraclip::lod::geomipmap::{Config, GeoMipMap, Mode};
 use terraclip::lod::roam::{self, Roam};
 use terraclip::lod::{Lod, View};
@@ -101,6 +102,86 @@ proptest! {
     }
 }
 
+/// Whether the triangles tile their square without a T-junction: every
+/// edge is shared by exactly two triangles, or lies on the square's border
+/// and belongs to one. Returns the first offending edge and its count.
+fn non_conforming_edge(tris: &[[[i64; 2]; 3]], side: i64) -> Option<([[i64; 2]; 2], usize)> {
+    let mut edges = std::collections::HashMap::new();
+    for t in tris {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *edges
+                .entry(if a < b { [a, b] } else { [b, a] })
+                .or_insert(0usize) += 1;
+        }
+    }
+    edges.into_iter().find(|&([a, b], n)| {
+        let border = (a[0] == b[0] && a[0] % side == 0) || (a[1] == b[1] && a[1] % side == 0);
+        n != if border { 1 } else { 2 }
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// The bisection stays conforming through any two views, a view seen
+    /// again changes nothing, and the tree does not remember the way it
+    /// came: merging then splitting reaches the same leaves as a fresh tree
+    /// updated at the last view (the split and merge rules share one
+    /// monotone error, so each view has one fixed point).
+    #[test]
+    fn cbt_stays_conforming_and_forgets_its_history(
+        x in 0.0..256.0f64, y in -192.0..0.0f64, z in 2.0..200.0f64,
+        x2 in 0.0..256.0f64, y2 in -192.0..0.0f64, z2 in 2.0..200.0f64,
+        tau in 0.25..8.0f64,
+    ) {
+        let mut c = Cbt::new(pyramid(), cbt::Config { tau });
+        let side = c.side();
+        for cam in [camera(x, y, z, 128.0, -96.0), camera(x2, y2, z2, x, y)] {
+            with_view(&cam, |v| {
+                let first = c.update(v);
+                prop_assert!(first.changes > 0 || c.triangle_count() == 2);
+                let tris = c.triangles();
+                prop_assert_eq!(non_conforming_edge(&tris, side), None);
+                prop_assert_eq!(c.update(v).changes, 0, "a second update of one view changed the tree");
+                Ok(())
+            })?;
+        }
+        let mut fresh = Cbt::new(pyramid(), cbt::Config { tau });
+        with_view(&camera(x2, y2, z2, x, y), |v| fresh.update(v));
+        prop_assert_eq!(fresh.triangles(), c.triangles());
+    }
+}
+
+/// The tree after an update is the same on one thread as on several: each
+/// pass decides from the tree as it was and only then sets its bits.
+#[test]
+fn cbt_is_the_same_for_any_thread_count() {
+    let cam = camera(40.0, -30.0, 25.0, 128.0, -96.0);
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let mut c = Cbt::new(pyramid(), cbt::Config { tau: 0.5 });
+            with_view(&cam, |v| {
+                c.update(v);
+                let mesh = c.mesh(v);
+                (c.triangles(), mesh.vertices)
+            })
+        })
+    };
+    let one = run(1);
+    assert!(
+        one.0.len() > 1000,
+        "{} triangles: the view should refine",
+        one.0.len()
+    );
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(5));
+}
+
 #[test]
 fn scheme_settings_are_validated() {
     for (from, to, word) in [
@@ -115,6 +196,7 @@ fn scheme_settings_are_validated() {
             "cubic",
         ),
         ("n = 15", "n = 15\nscheme = \"roam\"\ntau = -1.0", "lod.tau"),
+        ("n = 15", "n = 15\nscheme = \"cbt\"\ntau = 0.0", "lod.tau"),
         (
             "n = 15",
             "n = 15\nscheme = \"cdlod\"\ngrid = 3",
@@ -184,6 +266,7 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
         "roam",
         "cdlod",
         "annulus",
+        "cbt",
         "supersample",
     ] {
         assert!(r.rows.iter().any(|x| x.lod == lod), "no {lod} row");

@@ -43,7 +43,7 @@ pub struct SceneArgs {
     /// Image size WIDTHxHEIGHT.
     #[arg(long, value_parser = Overrides::parse_size)]
     pub size: Option<[u32; 2]>,
-    /// LOD scheme (clipmap, brute-force, geomipmap, roam, annulus, cdlod).
+    /// LOD scheme (clipmap, brute-force, geomipmap, roam, annulus, cdlod, cbt).
     #[arg(long, value_enum, hide_possible_values = true)]
     pub lod: Option<LodScheme>,
     /// Comma-separated effects (empty for none).

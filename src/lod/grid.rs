@@ -7,7 +7,7 @@
 //! sides of every shared edge, so a watertight mesh stays watertight: the
 //! triangles beyond the edge only collapse onto it.
 
-use super::{LodMesh, LodVertex};
+use super::{LodMesh, LodVertex, View};
 use crate::camera::Frustum;
 use crate::clipmap::cull::{classify, Class};
 use crate::pyramid::PyramidLevel;
@@ -142,4 +142,59 @@ pub fn visible(
         c0 as f64, r0 as f64, c1 as f64, r1 as f64, lo as f64, hi as f64,
     );
     classify(frustum, a, b) != Class::Outside
+}
+
+/// Bounding-disc radius of a bintree triangle as a multiple of half its
+/// hypotenuse, centred on the hypotenuse's midpoint: at least 1/(√2 − 1)
+/// makes each child's disc lie inside its parent's, so the distance below
+/// never shrinks down the tree.
+pub const NEST: f64 = 2.5;
+
+/// The screen-space error in pixels of a right-isosceles bintree triangle
+/// `v` (apex, left, right; base-grid corners) whose nested height error is
+/// `e` (height units) and whose heights lie in `bounds`: `e` projected at
+/// the distance from the eye to the triangle's bounding disc and height
+/// range, 0 outside the frustum. A child's disc, heights and box lie
+/// inside its parent's, so with a nested `e` the value never grows down
+/// the tree: what lets ROAM and the CBT merge what they split.
+pub fn screen_error(
+    base: &PyramidLevel,
+    view: &View,
+    e: f64,
+    v: [[i64; 2]; 3],
+    bounds: (f32, f32),
+) -> f64 {
+    if e <= 0.0 {
+        return 0.0;
+    }
+    let w = view.world;
+    let [_, l, r] = v;
+    let m = [(l[0] + r[0]) as f64 * 0.5, (l[1] + r[1]) as f64 * 0.5];
+    let half = (((l[0] - r[0]).pow(2) + (l[1] - r[1]).pow(2)) as f64).sqrt() * 0.5;
+    let radius = NEST * half * w.cell[0].max(w.cell[1]);
+    let eye = view.camera.eye;
+    let c = w.to_world(m[0], m[1], 0.0);
+    let dh = ((eye.x - c.x).hypot(eye.y - c.y) - radius).max(0.0);
+    let (zl, zh) = (
+        bounds.0 as f64 * w.vertical_scale,
+        bounds.1 as f64 * w.vertical_scale,
+    );
+    let dz = (zl - eye.z).max(eye.z - zh).max(0.0);
+    let d = dh.hypot(dz).max(1e-3);
+    if !visible(base, view.frustum, w, bounding_box(v), bounds) {
+        return 0.0;
+    }
+    e * w.vertical_scale * view.pixel_scale() / d
+}
+
+/// The box [x0, y0, x1, y1] of a triangle's corners.
+pub fn bounding_box(v: [[i64; 2]; 3]) -> [i64; 4] {
+    let xs = v.map(|p| p[0]);
+    let ys = v.map(|p| p[1]);
+    [
+        xs.into_iter().min().unwrap_or(0),
+        ys.into_iter().min().unwrap_or(0),
+        xs.into_iter().max().unwrap_or(0),
+        ys.into_iter().max().unwrap_or(0),
+    ]
 }

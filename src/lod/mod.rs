@@ -5,6 +5,7 @@
 
 pub mod annulus;
 pub(crate) mod brute_force;
+pub mod cbt;
 pub mod cdlod;
 pub mod clipmap;
 pub mod geomipmap;
@@ -46,7 +47,7 @@ pub struct Spec {
     /// GeoMipMapping distance modes: distance (metres) of the first step.
     pub distance: Option<f64>,
     /// Screen-space error threshold in pixels (GeoMipMapping "error" mode,
-    /// ROAM).
+    /// ROAM, CBT).
     pub tau: Option<f64>,
     /// ROAM: triangle budget.
     pub max_triangles: Option<usize>,
@@ -98,6 +99,8 @@ crate::names::named! {
         Cdlod => "cdlod",
         /// A "draping" annulus.
         Annulus => "annulus",
+        /// Dupuy's concurrent binary tree running longest-edge bisection.
+        Cbt => "cbt",
     }
 }
 
@@ -335,6 +338,8 @@ pub enum LodConfig {
     Annulus(annulus::Config),
     /// CDLOD's quadtree with per-vertex morphing.
     Cdlod(cdlod::Config),
+    /// Longest-edge bisection in a concurrent binary tree.
+    Cbt(cbt::Config),
 }
 
 impl LodConfig {
@@ -407,6 +412,9 @@ impl LodConfig {
                     None => 1 << 20,
                 },
             }),
+            LodScheme::Cbt => LodConfig::Cbt(cbt::Config {
+                tau: positive("lod.tau", l.tau, 2.0)?,
+            }),
             LodScheme::Annulus => LodConfig::Annulus(annulus::Config {
                 n: l.n,
                 rings: l.levels.unwrap_or(6).clamp(1, 24),
@@ -431,6 +439,7 @@ impl LodConfig {
             LodConfig::Roam(_) => LodScheme::Roam,
             LodConfig::Annulus(_) => LodScheme::Annulus,
             LodConfig::Cdlod(_) => LodScheme::Cdlod,
+            LodConfig::Cbt(_) => LodScheme::Cbt,
         }
     }
 
@@ -463,6 +472,7 @@ impl LodConfig {
             LodConfig::Roam(c) => Box::new(roam::Roam::new(pyramid, *c)),
             LodConfig::Annulus(c) => Box::new(annulus::Annulus::new(pyramid, *c)),
             LodConfig::Cdlod(c) => Box::new(cdlod::Cdlod::new(pyramid, *c)),
+            LodConfig::Cbt(c) => Box::new(cbt::Cbt::new(pyramid, *c)),
         })
     }
 }

@@ -33,9 +33,6 @@ pub struct Config {
 /// Patch side in cells: bintree depth 2·log2(P).
 const PATCH: i64 = 64;
 const NONE: u32 = u32::MAX;
-/// Bounding-disc radius as a multiple of half the hypotenuse; ≥ 1/(√2−1)
-/// makes each child's disc lie inside its parent's.
-const NEST: f64 = 2.5;
 
 #[derive(Clone, Copy, Debug)]
 struct Tri {
@@ -195,41 +192,8 @@ impl Roam {
     fn priority(&self, view: &View, id: u32) -> f64 {
         let t = &self.tris[id as usize];
         let e = self.error(t) as f64;
-        if e <= 0.0 {
-            return 0.0;
-        }
-        let w = view.world;
-        let [a, l, r] = t.v;
-        let m = [(l[0] + r[0]) as f64 * 0.5, (l[1] + r[1]) as f64 * 0.5];
-        let half = (((l[0] - r[0]).pow(2) + (l[1] - r[1]).pow(2)) as f64).sqrt() * 0.5;
-        let radius = NEST * half * w.cell[0].max(w.cell[1]);
-        let (lo, hi) = self.bounds[t.patch as usize];
-        let eye = view.camera.eye;
-        let c = w.to_world(m[0], m[1], 0.0);
-        let dh = ((eye.x - c.x).hypot(eye.y - c.y) - radius).max(0.0);
-        let (zl, zh) = (lo as f64 * w.vertical_scale, hi as f64 * w.vertical_scale);
-        let dz = (zl - eye.z).max(eye.z - zh).max(0.0);
-        let d = dh.hypot(dz).max(1e-3);
-        // Outside the view: no refinement (the disc's box is tested).
-        let b = [a, l, r];
-        let (x0, x1) = (
-            b.iter().map(|v| v[0]).min().unwrap_or(0),
-            b.iter().map(|v| v[0]).max().unwrap_or(0),
-        );
-        let (y0, y1) = (
-            b.iter().map(|v| v[1]).min().unwrap_or(0),
-            b.iter().map(|v| v[1]).max().unwrap_or(0),
-        );
-        if !grid::visible(
-            &self.pyramid.levels[0],
-            view.frustum,
-            w,
-            [x0, y0, x1, y1],
-            (lo, hi),
-        ) {
-            return 0.0;
-        }
-        e * w.vertical_scale * view.pixel_scale() / d
+        let bounds = self.bounds[t.patch as usize];
+        grid::screen_error(&self.pyramid.levels[0], view, e, t.v, bounds)
     }
 
     fn alloc(&mut self, t: Tri) -> u32 {

@@ -415,7 +415,8 @@ mod tests {
                 "geomipmap",
                 "roam",
                 "cdlod",
-                "annulus"
+                "annulus",
+                "cbt"
             ]
         );
     }

@@ -209,11 +209,13 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
             })?,
             1,
         );
-        add(
-            format!("tau={tau}px"),
-            variant(scene, LodScheme::Roam, None, |s| s.lod.tau = Some(tau))?,
-            1,
-        );
+        for lod in [LodScheme::Roam, LodScheme::Cbt] {
+            add(
+                format!("tau={tau}px"),
+                variant(scene, lod, None, |s| s.lod.tau = Some(tau))?,
+                1,
+            );
+        }
     }
     if !quick {
         // ATLOD's distance modes, at steps of a few blocks.
