@@ -25,9 +25,14 @@
 //! over frames; here each update runs merge passes and then split passes
 //! until none changes anything, so every frame shows the tree for its own
 //! view, as ROAM's queues do.
+//!
+//! The paper does not address popping. With `morph`, each vertex a split
+//! made moves from its diamond's hypotenuse to its own height as the
+//! diamond's error grows from τ to 2τ, so a split or a merge does not move
+//! the surface ([`Cbt::morph_weight`]).
 
 use super::grid::{self, MinMax};
-use super::{Lod, LodMesh, LodUpdate, View};
+use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
 use crate::lod::LodScheme;
 use crate::pyramid::{Pyramid, PyramidLevel};
 use rayon::prelude::*;
@@ -39,6 +44,10 @@ pub struct Config {
     /// Split while a triangle's error covers more than τ pixels; merge a
     /// diamond when both halves cover at most τ.
     pub tau: f64,
+    /// Geomorph each vertex a split made from the midpoint of its
+    /// diamond's hypotenuse to its own height, as the diamond's error goes
+    /// from τ to 2τ ([`Cbt::morph_weight`]).
+    pub morph: bool,
 }
 
 /// Smallest square side in cells: the tree's leaves are then at depth 7,
@@ -180,12 +189,28 @@ impl Tree {
 /// of side `s`: the root the first bit picks, then the child each further
 /// bit picks (0: apex at the midpoint, left half; 1: right half).
 fn corners(s: i64, n: Node) -> [[i64; 2]; 3] {
+    corners_made(s, n).0
+}
+
+/// [`corners`], and for each corner the node whose split made it (its
+/// hypotenuse's midpoint), `None` for the square's own corners.
+fn corners_made(s: i64, n: Node) -> ([[i64; 2]; 3], [Option<Node>; 3]) {
     let d = n.depth;
-    let mut v = root(s, (n.id >> (d - 1)) & 1);
+    let which = (n.id >> (d - 1)) & 1;
+    let mut v = root(s, which);
+    let mut by = [None; 3];
+    let mut node = Node::SQUARE.child(which);
     for k in (0..d - 1).rev() {
-        v = split(v, (n.id >> k) & 1);
+        let b = (n.id >> k) & 1;
+        by = if b == 0 {
+            [Some(node), by[0], by[1]]
+        } else {
+            [Some(node), by[2], by[0]]
+        };
+        v = split(v, b);
+        node = node.child(b);
     }
-    v
+    (v, by)
 }
 
 /// The square's two triangles, cut on its (0, 0)–(s, s) diagonal: 0 above
@@ -407,6 +432,35 @@ impl Cbt {
         grid::screen_error(&self.pyramid.levels[0], view, e as f64, v, bounds)
     }
 
+    /// Morph weight of the vertex that `made`'s split put at its
+    /// hypotenuse's midpoint: 1 (the hypotenuse's own height, as if not
+    /// split) while the larger error of the diamond's two halves is τ or
+    /// less, falling linearly to 0 (the vertex's height) at 2τ. A split
+    /// happens above τ and a merge at τ or under, so neither moves the
+    /// surface; the weight depends on the diamond alone, so every triangle
+    /// that shares the vertex draws it at one height.
+    fn morph_weight(&self, view: &View, made: Node) -> f32 {
+        let q = edge_neighbour(self.side, made).map_or(0.0, |q| self.priority(view, q));
+        let p = self.priority(view, made).max(q);
+        (2.0 - p / self.cfg.tau).clamp(0.0, 1.0) as f32
+    }
+
+    /// The vertex at `p`, made by `made`'s split: on the grid, morphed
+    /// toward its diamond's hypotenuse with `morph`. A vertex past the map
+    /// is clamped onto its edge unmorphed, so two of them clamped to one
+    /// point keep one height.
+    fn vertex(&self, view: &View, p: [i64; 2], made: Option<Node>) -> LodVertex {
+        let base = &self.pyramid.levels[0];
+        let mut v = grid::vertex(base, p[0], p[1]);
+        let inside = (v.col, v.row) == (p[0], p[1]);
+        if let (true, true, Some(m)) = (self.cfg.morph, inside, made) {
+            let [_, l, r] = corners(self.side, m);
+            v.zc = 0.5 * (base.get_clamped(l[0], l[1]) + base.get_clamped(r[0], r[1]));
+            v.alpha = self.morph_weight(view, m);
+        }
+        v
+    }
+
     /// The bits a conforming split of leaf `t` sets: `t`'s right child,
     /// then along the compatibility chain the hypotenuse neighbour, and
     /// where that does not exist yet its parent and the parent's
@@ -533,14 +587,14 @@ impl Lod for Cbt {
             .collect();
         out.append_parallel(&ranges, |r, m| {
             for i in r.clone() {
-                let v = corners(self.side, self.tree.leaf(i as u32));
+                let (v, made) = corners_made(self.side, self.tree.leaf(i as u32));
                 if !on_map(base, v) {
                     continue;
                 }
                 let b = grid::bounding_box(v);
                 let bounds = self.bounds.range(b[0], b[1], b[2], b[3]);
                 if grid::visible(base, view.frustum, view.world, b, bounds) {
-                    m.push(v.map(|p| grid::vertex(base, p[0], p[1])));
+                    m.push([0, 1, 2].map(|k| self.vertex(view, v[k], made[k])));
                 }
             }
         });
@@ -589,6 +643,27 @@ mod tests {
             }
         }
         assert!(border > 0);
+    }
+
+    #[test]
+    fn each_corner_is_the_midpoint_of_the_node_that_made_it() {
+        let s = 16;
+        for depth in 1..=9u32 {
+            for id in 1u64 << depth..2u64 << depth {
+                let n = Node { id, depth };
+                let (v, made) = corners_made(s, n);
+                for (p, by) in v.iter().zip(made) {
+                    match by {
+                        Some(m) => {
+                            assert!(m.depth < depth && n.id >> (depth - m.depth) == m.id);
+                            let [_, l, r] = corners(s, m);
+                            assert_eq!(*p, [(l[0] + r[0]) / 2, (l[1] + r[1]) / 2]);
+                        }
+                        None => assert!(p[0] % s == 0 && p[1] % s == 0, "{p:?}"),
+                    }
+                }
+            }
+        }
     }
 
     #[test]

@@ -414,6 +414,7 @@ impl LodConfig {
             }),
             LodScheme::Cbt => LodConfig::Cbt(cbt::Config {
                 tau: positive("lod.tau", l.tau, 2.0)?,
+                morph,
             }),
             LodScheme::Annulus => LodConfig::Annulus(annulus::Config {
                 n: l.n,

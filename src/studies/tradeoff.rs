@@ -217,6 +217,19 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
             );
         }
     }
+    {
+        // The CBT's morph is this project's (the paper has none): off, to
+        // see what it saves in popping.
+        let tau = if quick { 2.0 } else { 4.0 };
+        add(
+            format!("tau={tau}px morph off"),
+            variant(scene, LodScheme::Cbt, None, |s| {
+                s.lod.tau = Some(tau);
+                morph(s, false);
+            })?,
+            1,
+        );
+    }
     if !quick {
         // ATLOD's distance modes, at steps of a few blocks.
         let cell = scene.terrain.cell_size.as_ref().map_or(10.0, |c| match c {
