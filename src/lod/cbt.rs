@@ -13,9 +13,10 @@
 //! as it was, in parallel over the leaves, and then sets or clears its
 //! bits, so the result is the same for any thread count.
 //!
-//! The split rule is the screen-space error ROAM uses (the nested height
-//! error at the hypotenuse midpoint, projected at the distance of a
-//! bounding disc), zero outside the frustum. Splits are conforming: a
+//! The split rule is ROAM's screen-space error: the nested wedgie
+//! thickness (each hypotenuse midpoint's height error plus the larger of
+//! the children's), projected at the distance of a bounding disc, zero
+//! outside the frustum. Splits are conforming: a
 //! triangle is split together with the neighbour across its hypotenuse,
 //! whose own ancestors are split first where it does not exist yet (the
 //! paper's compatibility chain), so the mesh never has a T-junction. A
@@ -288,13 +289,17 @@ fn on_map(base: &PyramidLevel, v: [[i64; 2]; 3]) -> bool {
     b[0] < base.width as i64 - 1 && b[1] < base.height as i64 - 1
 }
 
-/// Nested errors of every node at depths 1..depth − 1 (`[d][id − 2^d]`),
-/// rounded up: the height error at the hypotenuse midpoint, maxed with the
-/// children's. Subtrees from depth 8 are made in parallel, each into its
-/// own contiguous runs of the levels below it.
+/// Nested errors of every node at depths 1..depth − 3 (`[d][id − 2^d]`),
+/// rounded up: the height error at the hypotenuse midpoint plus the larger
+/// of the children's ([`wedgie`]). The two levels above the deepest hold three quarters of the
+/// nodes and their errors take at most three midpoints, so they are
+/// computed when asked ([`nested`]) instead of stored. Subtrees from depth
+/// 8 are made in parallel, each into its own contiguous runs of the levels
+/// below it; a subtree wholly off the map is left at 0 unvisited.
 fn nested_errors(base: &PyramidLevel, s: i64, depth: u32) -> Vec<Vec<u16>> {
-    let top = 8.min(depth - 1);
-    let mut levels: Vec<Vec<u16>> = (0..depth).map(|d| vec![0u16; 1usize << d]).collect();
+    let stored = depth - 2;
+    let top = 8.min(stored - 1);
+    let mut levels: Vec<Vec<u16>> = (0..stored).map(|d| vec![0u16; 1usize << d]).collect();
     let mut runs: Vec<Vec<&mut [u16]>> = (0..1usize << top).map(|_| Vec::new()).collect();
     for (d, level) in levels.iter_mut().enumerate().skip(top as usize) {
         for (i, run) in level.chunks_mut(1 << (d - top as usize)).enumerate() {
@@ -319,9 +324,11 @@ fn nested_errors(base: &PyramidLevel, s: i64, depth: u32) -> Vec<Vec<u16>> {
                     id: (1 << d) + i,
                     depth: d,
                 };
-                let e = own_error(base, corners(s, n))
-                    .max(below[2 * i as usize])
-                    .max(below[2 * i as usize + 1]);
+                let e = wedgie(
+                    own_error(base, corners(s, n)),
+                    below[2 * i as usize],
+                    below[2 * i as usize + 1],
+                );
                 levels[d as usize][i as usize] = up16(e);
                 e
             })
@@ -335,13 +342,43 @@ fn nested_errors(base: &PyramidLevel, s: i64, depth: u32) -> Vec<Vec<u16>> {
 /// `k`, index `j` within its run) and returns its nested error.
 fn fill(base: &PyramidLevel, v: [[i64; 2]; 3], k: usize, j: usize, runs: &mut [&mut [u16]]) -> f32 {
     if k == runs.len() {
-        return 0.0; // the deepest level: legs of one cell, no midpoint
+        return nested(base, v, 2); // two levels above the deepest
     }
-    let e = own_error(base, v)
-        .max(fill(base, split(v, 0), k + 1, 2 * j, runs))
-        .max(fill(base, split(v, 1), k + 1, 2 * j + 1, runs));
+    if !on_map(base, v) {
+        return 0.0;
+    }
+    let e = wedgie(
+        own_error(base, v),
+        fill(base, split(v, 0), k + 1, 2 * j, runs),
+        fill(base, split(v, 1), k + 1, 2 * j + 1, runs),
+    );
     runs[k][j] = up16(e);
     e
+}
+
+/// The nested error ([`wedgie`]) of triangle `v` over `levels` levels of
+/// bisection, its own included (the deepest triangles, legs of one cell, have no midpoint
+/// and count 0).
+fn nested(base: &PyramidLevel, v: [[i64; 2]; 3], levels: u32) -> f32 {
+    if levels == 0 || !on_map(base, v) {
+        return 0.0;
+    }
+    wedgie(
+        own_error(base, v),
+        nested(base, split(v, 0), levels - 1),
+        nested(base, split(v, 1), levels - 1),
+    )
+}
+
+/// ROAM's nested wedgie thickness (Duchaineau et al. 1997): a triangle's
+/// own midpoint error plus the larger of its children's, which bounds how
+/// far the finest surface under it lies from its plane. The largest of
+/// the three instead (what `roam` uses, with its 64-cell patches as a
+/// floor) lets one big triangle stand for a range whose errors add up
+/// level by level: on ETOPO5 it left 9 triangles at τ = 4 px. Adding keeps
+/// the errors nested in f32 too (a + b ≥ b for a ≥ 0 after rounding).
+fn wedgie(own: f32, a: f32, b: f32) -> f32 {
+    own + a.max(b)
 }
 
 /// The height error at `v`'s hypotenuse midpoint against the hypotenuse's
@@ -369,7 +406,8 @@ pub struct Cbt {
     /// Side of the square in cells.
     side: i64,
     tree: Tree,
-    /// Nested errors per depth, rounded up ([`nested_errors`]).
+    /// Nested errors per depth down to three above the deepest, rounded
+    /// up ([`nested_errors`]).
     errors: Vec<Vec<u16>>,
     bounds: MinMax,
 }
@@ -425,8 +463,11 @@ impl Cbt {
         if n.depth == 0 || n.depth >= self.tree.depth {
             return 0.0;
         }
-        let e = from16(self.errors[n.depth as usize][(n.id - (1 << n.depth)) as usize]);
         let v = corners(self.side, n);
+        let e = match self.errors.get(n.depth as usize) {
+            Some(level) => from16(level[(n.id - (1 << n.depth)) as usize]),
+            None => nested(&self.pyramid.levels[0], v, self.tree.depth - n.depth),
+        };
         let b = grid::bounding_box(v);
         let bounds = self.bounds.range(b[0], b[1], b[2], b[3]);
         grid::screen_error(&self.pyramid.levels[0], view, e as f64, v, bounds)
@@ -449,14 +490,25 @@ impl Cbt {
     /// toward its diamond's hypotenuse with `morph`. A vertex past the map
     /// is clamped onto its edge unmorphed, so two of them clamped to one
     /// point keep one height.
-    fn vertex(&self, view: &View, p: [i64; 2], made: Option<Node>) -> LodVertex {
+    /// `made` caches each diamond's weight over a run of leaves: a vertex
+    /// is shared by up to eight triangles, mostly neighbours in the tree's
+    /// order, and its weight costs two errors and a neighbour search.
+    fn vertex(
+        &self,
+        view: &View,
+        p: [i64; 2],
+        made: Option<Node>,
+        weights: &mut std::collections::HashMap<u64, f32>,
+    ) -> LodVertex {
         let base = &self.pyramid.levels[0];
         let mut v = grid::vertex(base, p[0], p[1]);
         let inside = (v.col, v.row) == (p[0], p[1]);
         if let (true, true, Some(m)) = (self.cfg.morph, inside, made) {
             let [_, l, r] = corners(self.side, m);
             v.zc = 0.5 * (base.get_clamped(l[0], l[1]) + base.get_clamped(r[0], r[1]));
-            v.alpha = self.morph_weight(view, m);
+            v.alpha = *weights
+                .entry(m.id)
+                .or_insert_with(|| self.morph_weight(view, m));
         }
         v
     }
@@ -586,6 +638,7 @@ impl Lod for Cbt {
             .map(|s0| s0..(s0 + CHUNK).min(n))
             .collect();
         out.append_parallel(&ranges, |r, m| {
+            let mut weights = std::collections::HashMap::new();
             for i in r.clone() {
                 let (v, made) = corners_made(self.side, self.tree.leaf(i as u32));
                 if !on_map(base, v) {
@@ -594,7 +647,7 @@ impl Lod for Cbt {
                 let b = grid::bounding_box(v);
                 let bounds = self.bounds.range(b[0], b[1], b[2], b[3]);
                 if grid::visible(base, view.frustum, view.world, b, bounds) {
-                    m.push([0, 1, 2].map(|k| self.vertex(view, v[k], made[k])));
+                    m.push([0, 1, 2].map(|k| self.vertex(view, v[k], made[k], &mut weights)));
                 }
             }
         });
