@@ -234,9 +234,9 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("merge cracks", 21),
     ("merge fly", 27),
     ("merge golden", 33),
-    ("merge tradeoff", 24),
+    ("merge tradeoff", 37),
     ("merge check-gpu", 30),
-    ("merge export", 22),
+    ("merge export", 19),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -583,9 +583,9 @@ const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("cracks", 78),
     ("fly", 78),
     ("golden", 66),
-    ("tradeoff", 78),
-    ("check-gpu", 71),
-    ("export", 86),
+    ("tradeoff", 85),
+    ("check-gpu", 70),
+    ("export", 84),
 ];
 
 /// `terraclip merge` of the two parts written to files: an exit with a

@@ -635,7 +635,7 @@ mod tests {
             assert_eq!(s.to_string().parse::<LodScheme>(), Ok(*s));
         }
         assert_eq!(Effect::ALL.len(), 8);
-        assert_eq!(LodScheme::ALL.len(), 6);
+        assert_eq!(LodScheme::ALL.len(), 7);
         let e = "bloom".parse::<Effect>().unwrap_err();
         assert_eq!(
             e,
