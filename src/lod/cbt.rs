@@ -30,7 +30,7 @@
 //! The paper does not address popping. With `morph`, each vertex a split
 //! made moves from its diamond's hypotenuse to its own height as the
 //! diamond's error grows from τ to 2τ, so a split or a merge does not move
-//! the surface ([`Cbt::morph_weight`]).
+//! the surface (`Cbt::morph_weight`).
 
 use super::grid::{self, MinMax};
 use super::{Lod, LodMesh, LodUpdate, LodVertex, View};
@@ -47,7 +47,7 @@ pub struct Config {
     pub tau: f64,
     /// Geomorph each vertex a split made from the midpoint of its
     /// diamond's hypotenuse to its own height, as the diamond's error goes
-    /// from τ to 2τ ([`Cbt::morph_weight`]).
+    /// from τ to 2τ (`Cbt::morph_weight`).
     pub morph: bool,
 }
 
