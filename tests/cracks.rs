@@ -87,6 +87,30 @@ fn strips_are_watertight() {
     });
 }
 
+/// A view-dependent clipmap places each level on its own want
+/// (`Clipmap::update_placed`), as far from the viewer's chain as nesting
+/// allows, and centres each level's morph on its window: random wants (a
+/// third of them none) over the map and beyond it, after a placement from
+/// other wants, stay watertight.
+#[test]
+fn placed_strips_are_watertight() {
+    let want = prop::option::weighted(0.67, [-300.0f64..1000.0, -300.0f64..1000.0]);
+    let wants = prop::collection::vec(want, 0..6);
+    let s = (
+        cases(Layout::Strips),
+        [-200.0f64..900.0, -200.0f64..900.0],
+        wants.clone(),
+        wants,
+    );
+    let (checked, _) = survey("placed strips", s, |((n, v), prev, before, now)| {
+        let mut cm = cached(Layout::Strips, *n);
+        cm.update_placed(*prev, before);
+        cm.update_placed(*v, now);
+        cm
+    });
+    assert!(checked > 0);
+}
+
 #[test]
 fn footprints_are_watertight() {
     survey("footprints", cases(Layout::Footprints), |&(n, v)| {

@@ -157,6 +157,37 @@ fn a_100_frame_path_matches_with_incremental_texture_updates() {
     }
 }
 
+/// The view-dependent clipmap (`lod.centre = "view"`) over the default
+/// golden, seen through a 4° lens looking across the map, along a
+/// 60-frame path: each level placed on its own, its morph centred on its
+/// window and its rectangles culled in blocks, the GPU's toroids updated by
+/// dirty rectangles as the placements move. Every frame matches the CPU.
+#[test]
+fn a_view_dependent_clipmap_path_matches() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let mut scene = path_scene("default");
+    scene.lod.centre = Some("view".into());
+    scene
+        .apply(&terraclip::scene::Overrides {
+            fov: Some(4.0),
+            look_at: Some([8200.0, -8000.0, 150.0]),
+            ..Default::default()
+        })
+        .unwrap();
+    let res = parity::check(&mut r, &scene, "clipmap-view", 60, 37.0, &out(), exact).unwrap();
+    eprintln!("clipmap-view path: {res:?}");
+    assert!(res.pass, "{res:?}");
+    assert_eq!(res.frames, 60);
+    if exact {
+        assert_eq!(
+            (res.diff.colour_px_differ, res.diff.depth_px_differ),
+            (0, 0)
+        );
+    }
+    assert!(res.texels_uploaded > 0, "{res:?}");
+}
+
 /// `[gpu] update = "gpu"` on both synthesis goldens over 100-frame paths:
 /// the GPU makes the synthesised levels' texels itself, and after every
 /// update every level's toroid (heights and slopes) equals the CPU's bit

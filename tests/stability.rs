@@ -882,7 +882,7 @@ proptest! {
     /// pixels of random views, back-projected (see [`query_counts`]).
     #[test]
     fn height_queries_match_the_rendered_depth(
-        lod in prop::sample::select(vec!["brute-force", "clipmap", "geomipmap", "roam", "cbt"]),
+        lod in prop::sample::select(vec!["brute-force", "clipmap", "clipmap/view", "geomipmap", "roam", "cbt"]),
         view in 0usize..200,
     ) {
         let q = query_counts(lod, view);

@@ -160,3 +160,50 @@ pub fn cull_rect(
         }
     }
 }
+
+/// [`cull_rect`] in blocks: a rectangle that straddles the frustum is cut
+/// in two across its longer side, and each half culled again with the
+/// height bounds `range` gives for its reach, down to sides of `block`
+/// texels, which are cropped as [`cull_rect`] crops. A narrow view looking
+/// across a level sees a thin wedge of it, whose bounding rectangle (what
+/// one crop keeps) can hold tens of times the wedge's cells. The halves
+/// share their cut row or column, so they tile the rectangle's cells.
+pub fn cull_blocks(
+    f: &Frustum,
+    world: &WorldMap,
+    r: [i64; 4],
+    g: i64,
+    block: i64,
+    range: &impl Fn([i64; 4]) -> (f32, f32),
+    out: &mut Vec<[i64; 4]>,
+) {
+    let (zlo, zhi) = range(stitch_reach(r));
+    let s = g as f64;
+    let reach = stitch_reach(r);
+    let (lo, hi) = world.aabb(
+        reach[0] as f64 * s,
+        reach[1] as f64 * s,
+        r[2] as f64 * s,
+        r[3] as f64 * s,
+        zlo as f64,
+        zhi as f64,
+    );
+    match classify(f, lo, hi) {
+        Class::Outside => {}
+        Class::Inside => out.push(r),
+        Class::Intersecting => {
+            let (w, h) = (r[2] - r[0], r[3] - r[1]);
+            if w.max(h) <= block {
+                out.extend(cull_rect(f, world, r, g, zlo, zhi));
+            } else if w >= h {
+                let m = r[0] + w / 2;
+                cull_blocks(f, world, [r[0], r[1], m, r[3]], g, block, range, out);
+                cull_blocks(f, world, [m, r[1], r[2], r[3]], g, block, range, out);
+            } else {
+                let m = r[1] + h / 2;
+                cull_blocks(f, world, [r[0], r[1], r[2], m], g, block, range, out);
+                cull_blocks(f, world, [r[0], m, r[2], r[3]], g, block, range, out);
+            }
+        }
+    }
+}

@@ -36,6 +36,12 @@ crate::names::named! {
     }
 }
 
+/// Side, in level texels, down to which a placed level's render
+/// rectangles are cut for culling ([`cull::cull_blocks`]): small enough
+/// that a 1° view's wedge is not drawn as its bounding rectangle, large
+/// enough that a level's rectangles stay a few dozen.
+const CULL_BLOCK: i64 = 16;
+
 /// Clipmap settings.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClipmapConfig {
@@ -152,6 +158,9 @@ pub struct Clipmap {
     levels: Vec<ClipLevel>,
     footprints: Arc<Footprints>,
     viewer: [f64; 2],
+    /// Per level, the centre [`Clipmap::update_placed`] was given (empty
+    /// for a clipmap centred on the viewer).
+    wants: Vec<Option<[f64; 2]>>,
     /// The last update's statistics and this frame's regions, kept so an
     /// update reuses their memory instead of allocating every frame.
     stats: UpdateStats,
@@ -220,6 +229,7 @@ impl Clipmap {
             params,
             levels,
             viewer: [f64::NAN; 2],
+            wants: Vec::new(),
             stats: UpdateStats::default(),
             regions,
         })
@@ -281,7 +291,43 @@ impl Clipmap {
     /// nothing once the first update has sized its lists (with an eager
     /// pyramid), so a one-texel step costs about the texels it writes.
     pub fn update(&mut self, viewer: [f64; 2]) -> &UpdateStats {
+        self.wants.clear();
+        self.update_levels(viewer)
+    }
+
+    /// [`Clipmap::update`] with level l centred on `wants[l]` where it
+    /// gives a point (base-grid units), as near as nesting allows
+    /// ([`region::placed_into`]): a view-dependent clipmap's placement.
+    /// The coarsest level keeps the viewer's window, and each level's morph
+    /// is centred on its own window.
+    pub fn update_placed(&mut self, viewer: [f64; 2], wants: &[Option<[f64; 2]>]) -> &UpdateStats {
+        self.wants.clear();
+        self.wants.extend_from_slice(wants);
+        if self.wants.is_empty() {
+            // No want at all still places (every level on the viewer's chain).
+            self.wants.push(None);
+        }
+        self.update_levels(viewer)
+    }
+
+    /// The regions of every level for `viewer` (and the wants, if placed).
+    fn regions_into(
+        &self,
+        p: &RegionParams,
+        viewer: [f64; 2],
+        out: &mut Vec<region::LevelRegions>,
+    ) {
+        if self.wants.is_empty() {
+            region::compute_into(p, viewer, out);
+        } else {
+            let width = self.levels.first().map_or(1.0, |l| l.morph.width);
+            region::placed_into(p, viewer, width, &self.wants, out);
+        }
+    }
+
+    fn update_levels(&mut self, viewer: [f64; 2]) -> &UpdateStats {
         let count = self.levels.len();
+        let placed = !self.wants.is_empty();
         let viewer = if viewer[0].is_finite() && viewer[1].is_finite() {
             viewer
         } else {
@@ -298,6 +344,7 @@ impl Clipmap {
             && self.stats.levels_waiting == 0
             && self.regions.len() == count;
         let settled = pristine
+            && !placed
             && self.pyramid.is_complete()
             && self.regions[0].origin == region::level0_origin(&self.params, viewer)
             && self
@@ -332,10 +379,10 @@ impl Clipmap {
         stats.tiles_evicted = 0;
         stats.column_rows_copied = 0;
         if !settled {
-            if pristine {
+            if pristine && !placed {
                 region::update_into(&self.params, viewer, &mut regions);
             } else {
-                region::compute_into(&self.params, viewer, &mut regions);
+                self.regions_into(&self.params, viewer, &mut regions);
             }
             self.move_levels(viewer, &mut regions, &mut stats);
         }
@@ -348,10 +395,15 @@ impl Clipmap {
             // stalls on store forwarding. Only the origin on a settled frame:
             // copying the whole regions cost more than the rest of its loop.
             let o = regions[l].origin;
-            lv.morph.viewer = [
-                (clamped[0] * scale - o[0] as f64) as f32,
-                (clamped[1] * scale - o[1] as f64) as f32,
-            ];
+            lv.morph.viewer = if placed {
+                // A placed level's window is centred on itself.
+                [lv.morph.half; 2]
+            } else {
+                [
+                    (clamped[0] * scale - o[0] as f64) as f32,
+                    (clamped[1] * scale - o[1] as f64) as f32,
+                ]
+            };
             scale *= 0.5;
             if settled {
                 // Regions, and so the rest of the morph constants, as before.
@@ -375,7 +427,9 @@ impl Clipmap {
         }
         self.regions = regions;
         self.stats = stats;
-        self.prefetch_ahead(previous, viewer);
+        if !placed {
+            self.prefetch_ahead(previous, viewer);
+        }
         &self.stats
     }
 
@@ -432,7 +486,8 @@ impl Clipmap {
                 levels: ready.end,
                 ..self.params
             };
-            let own = region::compute(&params, viewer);
+            let mut own = Vec::with_capacity(params.levels);
+            self.regions_into(&params, viewer, &mut own);
             regions[..ready.end].copy_from_slice(&own);
             regions[ready.end..]
                 .iter_mut()
@@ -607,14 +662,36 @@ impl Clipmap {
         let regions: Vec<_> = self.levels.iter().map(|lv| lv.regions).collect();
         let (zlo, zhi) = self.height_range(l);
         let g = lv.spacing();
-        let rects: Vec<[i64; 4]> = region::render_rects(&regions, l)
-            .iter()
-            .map(|r| footprint::to_level(r, l))
-            .filter_map(|r| match frustum {
-                Some((f, w)) => cull::cull_rect(f, w, r, g, zlo, zhi),
-                None => Some(r),
-            })
-            .collect();
+        let level_rects = region::render_rects(&regions, l)
+            .into_iter()
+            .map(|r| footprint::to_level(&r, l));
+        let rects: Vec<[i64; 4]> = match frustum {
+            None => level_rects.collect(),
+            // A placed level is culled in blocks, each with the height
+            // bounds of its own reach (and of the coarser level it morphs
+            // toward, as `height_range` takes them).
+            Some((f, w)) if !self.wants.is_empty() => {
+                let morphs = lv.morph.enabled;
+                let range = |at: [i64; 4]| {
+                    let (mut lo, mut hi) = self.pyramid.range_in(l, at);
+                    if morphs {
+                        let c = [at[0] >> 1, at[1] >> 1, (at[2] + 1) >> 1, (at[3] + 1) >> 1];
+                        let (a, b) = self.pyramid.range_in(l + 1, c);
+                        lo = lo.min(a);
+                        hi = hi.max(b);
+                    }
+                    (lo, hi)
+                };
+                let mut out = Vec::new();
+                for r in level_rects {
+                    cull::cull_blocks(f, w, r, g, CULL_BLOCK, &range, &mut out);
+                }
+                out
+            }
+            Some((f, w)) => level_rects
+                .filter_map(|r| cull::cull_rect(f, w, r, g, zlo, zhi))
+                .collect(),
+        };
         LevelGeometry::Strips {
             strip: footprint::strip_indices(&lv.heights, &rects),
         }

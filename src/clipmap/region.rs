@@ -211,6 +211,58 @@ pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegio
     activate(p, out, p.levels);
 }
 
+/// [`compute_into`] with each level placed on its own centre where
+/// `wants[l]` gives one (base-grid units; a view-dependent clipmap's), as
+/// near to it as nesting allows. The coarsest level keeps the viewer's
+/// window; each finer one is then placed coarse to fine, its window origin
+/// `f` the even origin nearest to centring it on its want (on the viewer
+/// where it has none), clamped for the coarser origin `c` to
+/// `[2c + 2⌈w⌉ + 2, 2c + 2⌊(n − 1)/2 − w − 1⌋]`, `w` the morph's
+/// transition width. There the finer window lies where the coarser
+/// level's morph, centred on its own window, is 0: |x − centre| ≤
+/// (n − 1)/2 − w − 1 coarse texels, so the coarser vertices the finer
+/// boundary meets keep their own heights and the finer boundary, whose
+/// morph is 1, meets them exactly. That range also lies inside the coarser
+/// window eroded by 2 coarse texels (w ≥ 1), where [`activate`] keeps
+/// finer regions, and holds the viewer's own chain (f − m or f − m + 1 for
+/// w ≤ m − 3), so wants of `None` everywhere give [`compute_into`]'s
+/// regions.
+pub fn placed_into(
+    p: &RegionParams,
+    viewer: [f64; 2],
+    width: f32,
+    wants: &[Option<[f64; 2]>],
+    out: &mut Vec<LevelRegions>,
+) {
+    out.clear();
+    let viewer = clamp_viewer(p.map.as_ref(), viewer);
+    let mut chain = Vec::with_capacity(p.levels);
+    let mut o = first_origin(p.n, viewer);
+    for _ in 0..p.levels {
+        chain.push(o);
+        o = coarser_origin(o, block_size(p.n));
+    }
+    let half = ((p.n - 1) / 2) as f32;
+    let (lo, hi) = (
+        2 * width.ceil() as i64 + 2,
+        2 * (half - width - 1.0).floor() as i64,
+    );
+    let mut origins = chain.clone();
+    for l in (0..p.levels.saturating_sub(1)).rev() {
+        let c = origins[l + 1];
+        let scale = 0.5f64.powi(l as i32);
+        let want = wants.get(l).copied().flatten().map_or(chain[l], |w| {
+            let w = clamp_viewer(p.map.as_ref(), w);
+            first_origin(p.n, [w[0] * scale, w[1] * scale])
+        });
+        origins[l] = [0, 1].map(|a| want[a].clamp(2 * c[a] + lo, 2 * c[a] + hi.max(lo)));
+    }
+    for (l, &o) in origins.iter().enumerate() {
+        out.push(unactivated(p.n, o, l));
+    }
+    activate(p, out, p.levels);
+}
+
 /// [`compute_into`] for a list that holds `compute`'s result for an earlier
 /// viewer: only the levels up to the coarsest whose origin moved are
 /// recomputed, since a level's regions depend on its origin and on the
@@ -437,6 +489,72 @@ mod tests {
         }));
         for x in cases {
             assert_eq!(floor_i64(x), x.floor() as i64, "x = {x:e}");
+        }
+    }
+
+    fn params(n: i64) -> RegionParams {
+        RegionParams {
+            n,
+            levels: 5,
+            map: Some(map_bounds(700, 530, 5)),
+        }
+    }
+
+    /// With no wants, placing is the viewer's chain: `compute`'s regions.
+    #[test]
+    fn placing_without_wants_is_the_viewers_chain() {
+        for n in [15, 31, 63] {
+            for v in [[350.0, 260.0], [3.0, 520.0], [-80.0, 900.0]] {
+                let mut placed = Vec::new();
+                // The default transition width, n/10 capped at m − 3.
+                let w = (n as f32 / 10.0).min((block_size(n) - 3) as f32);
+                placed_into(&params(n), v, w, &[None; 5], &mut placed);
+                assert_eq!(placed, compute(&params(n), v), "n = {n}, viewer {v:?}");
+            }
+        }
+    }
+
+    /// Each level goes as near its want as the coarser window allows:
+    /// inside it eroded by 2 coarse texels, on even origins, and within a
+    /// texel of the want where that fits.
+    #[test]
+    fn placed_levels_nest_and_follow_their_wants() {
+        let p = params(31);
+        let viewer = [100.0, 100.0];
+        // Level 0 wants a point 4 texels off the viewer: within the slack
+        // that level 1's morph leaves it with w = 3, f in [2c + 8, 2c + 22]
+        // about the chain's 2c + 14 or 2c + 16.
+        let mut out = Vec::new();
+        placed_into(
+            &p,
+            viewer,
+            3.0,
+            &[Some([104.0, 96.0]), None, None, None, None],
+            &mut out,
+        );
+        let c0 = [out[0].clip.x0 + 15, out[0].clip.y0 + 15];
+        assert!(
+            (c0[0] - 104).abs() <= 1 && (c0[1] - 96).abs() <= 1,
+            "{c0:?}"
+        );
+        // Every level wants a point far off: each is clamped into its
+        // coarser window, which stays on the viewer's chain at the top.
+        placed_into(&p, viewer, 3.0, &[Some([600.0, 500.0]); 5], &mut out);
+        let chain = compute(&p, viewer);
+        assert_eq!(out[4].origin, chain[4].origin);
+        for l in 0..4 {
+            let (f, c) = (out[l].origin, out[l + 1].origin);
+            assert!(f.iter().all(|x| x % 2 == 0), "level {l}: {f:?}");
+            for a in 0..2 {
+                assert!(
+                    (2 * c[a] + 4..=2 * c[a] + p.n - 5).contains(&f[a]),
+                    "level {l}, axis {a}: {f:?} in {c:?}"
+                );
+            }
+            // Pushed to the far end of the slack, toward the want: the
+            // window's far side 11 − 4 − 1 = 6 coarse texels past the
+            // coarser centre, where its morph is still 0.
+            assert_eq!(f, [2 * c[0] + 22, 2 * c[1] + 22], "level {l}");
         }
     }
 }

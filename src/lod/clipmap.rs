@@ -17,22 +17,44 @@ pub struct ClipFrame {
     pub update: UpdateStats,
 }
 
+/// Where a clipmap's levels nest (`lod.centre`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Centre {
+    /// Around the eye's ground point (LH04): detail by distance alone.
+    #[default]
+    Eye,
+    /// Each level over the terrain the view sees that needs it
+    /// ([`super::focus`]), for texels of at most `tau` pixels (`lod.tau`),
+    /// so that a narrow field of view looking far gets the fine levels.
+    View {
+        /// Pixels a texel may cover.
+        tau: f64,
+    },
+}
+
 /// The geometry clipmap as a LOD scheme: the nested toroidal levels, updated to the
 /// viewer each frame and meshed as strips or footprints.
 pub struct ClipmapLod {
     cm: Clipmap,
+    centre: Centre,
     meshes: Vec<LevelMesh>,
     update: UpdateStats,
 }
 
 impl ClipmapLod {
-    /// The scheme over `cm`.
+    /// The scheme over `cm`, nested around the eye.
     pub fn new(cm: Clipmap) -> Self {
         ClipmapLod {
             cm,
+            centre: Centre::Eye,
             meshes: Vec::new(),
             update: UpdateStats::default(),
         }
+    }
+
+    /// The same, with its levels nested around `centre`.
+    pub fn centred(self, centre: Centre) -> Self {
+        ClipmapLod { centre, ..self }
     }
 }
 
@@ -43,7 +65,15 @@ impl Lod for ClipmapLod {
 
     fn update(&mut self, view: &View) -> LodUpdate {
         // clone_from keeps this frame's lists in last frame's memory.
-        let stats = self.cm.update(view.world.to_grid(view.camera.eye));
+        let eye = view.world.to_grid(view.camera.eye);
+        let stats = match self.centre {
+            Centre::Eye => self.cm.update(eye),
+            Centre::View { tau } => {
+                let levels = self.cm.levels().len();
+                let wants = super::focus::wants(view, self.cm.pyramid(), levels, tau);
+                self.cm.update_placed(eye, &wants)
+            }
+        };
         self.update.clone_from(stats);
         LodUpdate {
             texels_updated: self.update.texels_total,

@@ -8,6 +8,7 @@ pub(crate) mod brute_force;
 pub mod cbt;
 pub mod cdlod;
 pub mod clipmap;
+pub mod focus;
 pub mod geomipmap;
 mod grid;
 pub mod roam;
@@ -40,6 +41,9 @@ pub struct Spec {
     pub transition: Option<f32>,
     /// Clipmap texels one update may rewrite; levels beyond it stay stale (LH04's graceful degradation).
     pub texel_budget: Option<u64>,
+    /// Where the clipmap's levels nest: "eye" (LH04) or "view" (the
+    /// terrain the view sees; [`focus`]).
+    pub centre: Option<String>,
     /// GeoMipMapping: block side in vertices, 2^k + 1.
     pub block: Option<usize>,
     /// GeoMipMapping level choice: "linear", "exponential" or "error".
@@ -70,6 +74,7 @@ impl Default for Spec {
             layout: Layout::default(),
             transition: None,
             texel_budget: None,
+            centre: None,
             block: None,
             mode: None,
             distance: None,
@@ -326,8 +331,8 @@ pub trait Lod: Send {
 /// A scheme and its settings, as a scene names them.
 #[derive(Clone, Debug, PartialEq)]
 pub enum LodConfig {
-    /// Geometry clipmaps (LH04).
-    Clipmap(ClipmapConfig),
+    /// Geometry clipmaps (LH04), nested around the eye or the view.
+    Clipmap(ClipmapConfig, clipmap::Centre),
     /// Every base-grid cell: the reference the others are measured against.
     BruteForce,
     /// GeoMipMapping blocks.
@@ -368,14 +373,36 @@ impl LodConfig {
             }
         };
         Ok(match l.scheme {
-            LodScheme::Clipmap => LodConfig::Clipmap(ClipmapConfig {
-                n: l.n,
-                levels: l.levels,
-                layout: l.layout,
-                transition: l.transition,
-                morph,
-                texel_budget: l.texel_budget,
-            }),
+            LodScheme::Clipmap => LodConfig::Clipmap(
+                ClipmapConfig {
+                    n: l.n,
+                    levels: l.levels,
+                    layout: l.layout,
+                    transition: l.transition,
+                    morph,
+                    texel_budget: l.texel_budget,
+                },
+                match l.centre.as_deref().unwrap_or("eye") {
+                    "eye" => clipmap::Centre::Eye,
+                    // The footprints' trims fix where each level sits in
+                    // the coarser one.
+                    "view" if l.layout == Layout::Footprints => {
+                        return Err(Error::value(
+                            "lod.centre",
+                            "\"view\" places each level on its own, which needs lod.layout = \"strips\"",
+                        ))
+                    }
+                    "view" => clipmap::Centre::View {
+                        tau: positive("lod.tau", l.tau, 1.0)?,
+                    },
+                    c => {
+                        return Err(Error::value(
+                            "lod.centre",
+                            format!("unknown centre '{c}' (available: eye, view)"),
+                        ))
+                    }
+                },
+            ),
             LodScheme::BruteForce => LodConfig::BruteForce,
             LodScheme::Geomipmap => {
                 let block = l.block.unwrap_or(33);
@@ -434,7 +461,7 @@ impl LodConfig {
     /// The scheme's name (as scenes and the CLI spell it).
     pub fn scheme(&self) -> LodScheme {
         match self {
-            LodConfig::Clipmap(_) => LodScheme::Clipmap,
+            LodConfig::Clipmap(..) => LodScheme::Clipmap,
             LodConfig::BruteForce => LodScheme::BruteForce,
             LodConfig::GeoMipMap(_) => LodScheme::Geomipmap,
             LodConfig::Roam(_) => LodScheme::Roam,
@@ -453,7 +480,7 @@ impl LodConfig {
     /// allows, for the lightmap's and normal map's blends).
     pub fn pyramid_levels(&self, w: usize, h: usize) -> usize {
         match self {
-            LodConfig::Clipmap(c) => c
+            LodConfig::Clipmap(c, _) => c
                 .levels
                 .unwrap_or_else(|| crate::clipmap::region::max_levels(w, h, c.n))
                 .max(1),
@@ -465,9 +492,9 @@ impl LodConfig {
     /// The scheme over `pyramid`.
     pub fn build(&self, pyramid: Arc<Pyramid>) -> Result<Box<dyn Lod>> {
         Ok(match self {
-            LodConfig::Clipmap(c) => {
-                Box::new(clipmap::ClipmapLod::new(Clipmap::new(pyramid, c.clone())?))
-            }
+            LodConfig::Clipmap(c, centre) => Box::new(
+                clipmap::ClipmapLod::new(Clipmap::new(pyramid, c.clone())?).centred(*centre),
+            ),
             LodConfig::BruteForce => Box::new(brute_force::BruteForce::new(pyramid)),
             LodConfig::GeoMipMap(c) => Box::new(geomipmap::GeoMipMap::new(pyramid, *c)),
             LodConfig::Roam(c) => Box::new(roam::Roam::new(pyramid, *c)),

@@ -502,20 +502,29 @@ impl Scene {
 }
 
 impl Scene {
-    /// This scene with another LOD scheme: "NAME" or "clipmap/LAYOUT"
-    /// (strips, footprints).
+    /// This scene with another LOD scheme: "NAME", or for the clipmap
+    /// "clipmap/PART[/PART]" with a layout (strips, footprints) and where
+    /// its levels nest (eye, view), as `cracks --lod` spells them.
     pub fn with_lod(&self, spec: &str) -> Result<Scene> {
-        let (name, layout) = match spec.split_once('/') {
-            Some((n, l)) => (n, Some(l)),
-            None => (spec, None),
-        };
-        let scheme = name
+        let mut parts = spec.split('/');
+        let scheme = parts
+            .next()
+            .unwrap_or_default()
             .parse()
             .map_err(|r: String| self.bad("lod.scheme", r))?;
-        let layout = layout
-            .map(|l| l.parse().map_err(|r: String| self.bad("lod.layout", r)))
-            .transpose()?;
-        self.with_scheme(scheme, layout)
+        let mut layout = None;
+        let mut centre = None;
+        for p in parts {
+            match p {
+                "eye" | "view" => centre = Some(p.to_string()),
+                l => layout = Some(l.parse().map_err(|r: String| self.bad("lod.layout", r))?),
+            }
+        }
+        let mut s = self.clone();
+        if centre.is_some() {
+            s.lod.centre = centre;
+        }
+        s.with_scheme(scheme, layout)
     }
 
     /// This scene with scheme `scheme` (and, if given, the clipmap layout

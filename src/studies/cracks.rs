@@ -35,13 +35,18 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 /// Schemes `--lod all` surveys: every scheme but brute force (the
-/// reference), the clipmap in each layout (`clipmap/strips`, …).
+/// reference), the clipmap in each layout (`clipmap/strips`, …) and
+/// nested around the view (`clipmap/view`).
 pub fn all() -> Vec<String> {
     LodScheme::ALL
         .iter()
         .flat_map(|&s| match s {
             LodScheme::BruteForce => vec![],
-            LodScheme::Clipmap => Layout::ALL.iter().map(|l| format!("{s}/{l}")).collect(),
+            LodScheme::Clipmap => Layout::ALL
+                .iter()
+                .map(|l| format!("{s}/{l}"))
+                .chain([format!("{s}/view")])
+                .collect(),
             _ => vec![s.to_string()],
         })
         .collect()
@@ -406,12 +411,13 @@ mod tests {
     use super::*;
 
     #[test]
-    fn all_is_every_scheme_but_brute_force_and_both_clipmap_layouts() {
+    fn all_is_every_scheme_but_brute_force_with_both_clipmap_layouts_and_centres() {
         assert_eq!(
             all(),
             [
                 "clipmap/strips",
                 "clipmap/footprints",
+                "clipmap/view",
                 "geomipmap",
                 "roam",
                 "cdlod",

@@ -73,6 +73,13 @@ pub struct Row {
     pub reference: String,
     /// On the Pareto front of (ms, rmse) among brute-force-referenced rows.
     pub pareto: bool,
+    /// Mean frame time over the low-FOV views alone (ms): the time the
+    /// low-FOV RMSE is bought with.
+    #[serde(default)]
+    pub ms_low_fov: f64,
+    /// Mean triangles drawn over the low-FOV views.
+    #[serde(default)]
+    pub triangles_low_fov: f64,
 }
 
 /// The report: rows, and the answer to "within 1/10 of brute force's time,
@@ -150,6 +157,23 @@ pub fn settings(scene: &Scene, quick: bool) -> Result<Vec<Setting>> {
             morph(s, true);
         })?;
         add(format!("n={n} strips"), s, 1);
+    }
+    // The view-dependent clipmap: each level placed over the terrain that
+    // needs it, for texels of at most τ pixels.
+    let view_ns: &[(i64, f64)] = if quick {
+        &[(15, 4.0)]
+    } else {
+        &[(63, 4.0), (127, 4.0), (127, 16.0), (255, 16.0), (511, 16.0)]
+    };
+    for &(n, tau) in view_ns {
+        let s = variant(scene, LodScheme::Clipmap, Some(Layout::Strips), |s| {
+            s.lod.n = n;
+            s.lod.levels = None;
+            s.lod.centre = Some("view".into());
+            s.lod.tau = Some(tau);
+            morph(s, true);
+        })?;
+        add(format!("n={n} tau={tau}px view"), s, 1);
     }
     let n = if quick { 15 } else { 31 };
     add(
@@ -350,6 +374,8 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             None
         };
         let mut errs: Vec<(ImageError, &'static str)> = Vec::new();
+        // Time, triangles and count of the low-FOV views.
+        let mut low = [0.0f64; 3];
         let (mut ms, mut parts, mut tris) = (0.0, [0.0f64; 5], 0.0);
         for (i, v) in views.iter().enumerate() {
             // A warm-up frame one step back, so incremental schemes pay
@@ -375,6 +401,11 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             };
             errs.push((compare::image_error(&img, &reference, &v.camera), v.kind));
             ms += stats.ms_total;
+            if v.kind == "low-fov" {
+                low[0] += stats.ms_total;
+                low[1] += triangles as f64;
+                low[2] += 1.0;
+            }
             parts[0] += stats.pass_ms(&["lod"]);
             parts[1] += stats.pass_ms(&["mesh"]);
             parts[2] += stats.pass_ms(&["cull", "vertex", "normals", "normal-map", "lightmap"]);
@@ -427,6 +458,8 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             }
             .into(),
             pareto: false,
+            ms_low_fov: low[0] / low[2].max(1.0),
+            triangles_low_fov: low[1] / low[2].max(1.0),
         });
         tick(&format!("{} {}", st.lod, st.config));
     }
@@ -499,23 +532,33 @@ pub fn mark_pareto(rows: &mut [Row]) {
         .iter()
         .map(|r| (r.ms, r.rmse, r.reference == "brute-force"))
         .collect();
-    for (i, r) in rows.iter_mut().enumerate() {
-        let (ms, e, eligible) = pts[i];
-        r.pareto = eligible
-            && !pts.iter().enumerate().any(|(j, &(m2, e2, ok))| {
-                j != i && ok && m2 <= ms && e2 <= e && (m2 < ms || e2 < e)
-            });
+    for (r, p) in rows.iter_mut().zip(front_of(&pts)) {
+        r.pareto = p;
     }
+}
+
+/// Which of the (time, error, eligible) points no other eligible point
+/// beats in both.
+fn front_of(pts: &[(f64, f64, bool)]) -> Vec<bool> {
+    pts.iter()
+        .enumerate()
+        .map(|(i, &(ms, e, eligible))| {
+            eligible
+                && !pts.iter().enumerate().any(|(j, &(m2, e2, ok))| {
+                    j != i && ok && m2 <= ms && e2 <= e && (m2 < ms || e2 < e)
+                })
+        })
+        .collect()
 }
 
 /// The rows as CSV.
 pub fn csv(rows: &[Row]) -> String {
     let mut out = String::from(
-        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto\n",
+        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto,ms_low_fov,triangles_low_fov\n",
     );
     for r in rows {
         out += &format!(
-            "{},\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4},{},{:.3},{:.0},{:.4},{},{}\n",
+            "{},\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4},{},{:.3},{:.0},{:.4},{},{},{:.3},{:.0}\n",
             r.lod,
             r.config,
             r.ms,
@@ -532,7 +575,9 @@ pub fn csv(rows: &[Row]) -> String {
             r.triangles,
             r.popping,
             r.reference,
-            r.pareto
+            r.pareto,
+            r.ms_low_fov,
+            r.triangles_low_fov
         );
     }
     out
@@ -540,41 +585,90 @@ pub fn csv(rows: &[Row]) -> String {
 
 /// Error against time, one series per scheme, the Pareto front marked.
 pub fn chart(report: &Report) -> crate::studies::report::chart::Chart {
+    let pareto: Vec<bool> = report.rows.iter().map(|r| r.pareto).collect();
+    chart_of(
+        report,
+        |r| (r.ms, r.rmse),
+        &pareto,
+        report.title.clone(),
+        "ms per frame (log)",
+        "RMSE vs reference (8-bit)",
+    )
+}
+
+/// The low-FOV views alone: their RMSE against their frame time, with
+/// the front of those two.
+pub fn chart_low_fov(report: &Report) -> crate::studies::report::chart::Chart {
+    let pts: Vec<(f64, f64, bool)> = report
+        .rows
+        .iter()
+        .map(|r| (r.ms_low_fov, r.rmse_low_fov, r.reference == "brute-force"))
+        .collect();
+    let pareto = front_of(&pts);
+    chart_of(
+        report,
+        |r| (r.ms_low_fov, r.rmse_low_fov),
+        &pareto,
+        format!("{}: low-FOV views", report.title),
+        "ms per low-FOV frame (log)",
+        "low-FOV RMSE vs reference (8-bit)",
+    )
+}
+
+fn chart_of(
+    report: &Report,
+    at: impl Fn(&Row) -> (f64, f64),
+    pareto: &[bool],
+    title: String,
+    x_label: &str,
+    y_label: &str,
+) -> crate::studies::report::chart::Chart {
     use crate::studies::report::chart::{Chart, Series};
     let mut series: Vec<Series> = Vec::new();
     for r in &report.rows {
-        match series.iter_mut().find(|s| s.name == r.lod) {
-            Some(s) => s.points.push((r.ms, r.rmse)),
+        // The view-dependent clipmap is its own series.
+        let name = if r.lod == "clipmap" && r.config.ends_with(" view") {
+            "clipmap (view)".to_string()
+        } else {
+            r.lod.clone()
+        };
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push(at(r)),
             None => series.push(Series {
-                name: r.lod.clone(),
-                points: vec![(r.ms, r.rmse)],
+                name,
+                points: vec![at(r)],
             }),
         }
     }
     let mut front: Vec<(f64, f64)> = report
         .rows
         .iter()
-        .filter(|r| r.pareto)
-        .map(|r| (r.ms, r.rmse))
+        .zip(pareto)
+        .filter(|(_, &p)| p)
+        .map(|(r, _)| at(r))
         .collect();
     front.sort_by(|a, b| a.0.total_cmp(&b.0));
     Chart {
-        title: report.title.clone(),
-        x_label: "ms per frame (log)".into(),
-        y_label: "RMSE vs reference (8-bit)".into(),
+        title,
+        x_label: x_label.into(),
+        y_label: y_label.into(),
         series,
         front,
         linear_x: false,
     }
 }
 
-/// Writes `tradeoff.csv`, `.svg` and `.png` into `dir` (each atomically).
+/// Writes `tradeoff.csv`, `.svg` and `.png`, and the low-FOV chart
+/// `tradeoff-low-fov.svg` and `.png`, into `dir` (each atomically).
 pub fn write(report: &Report, dir: &std::path::Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
     let c = chart(report);
     crate::error::write_atomic(&dir.join("tradeoff.csv"), csv(&report.rows).as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff.svg"), c.svg().as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff.png"), &c.png()?)?;
+    let low = chart_low_fov(report);
+    crate::error::write_atomic(&dir.join("tradeoff-low-fov.svg"), low.svg().as_bytes())?;
+    crate::error::write_atomic(&dir.join("tradeoff-low-fov.png"), &low.png()?)?;
     Ok(())
 }
 
@@ -601,6 +695,8 @@ mod tests {
             popping: 0.0,
             reference: "brute-force".into(),
             pareto: false,
+            ms_low_fov: ms,
+            triangles_low_fov: 0.0,
         }
     }
 
@@ -610,5 +706,17 @@ mod tests {
         mark_pareto(&mut rows);
         let front: Vec<bool> = rows.iter().map(|r| r.pareto).collect();
         assert_eq!(front, [true, true, false, true]);
+        // The low-FOV chart's front is of its own two columns.
+        rows[2].rmse_low_fov = -1.0;
+        let c = chart_low_fov(&Report {
+            title: "t".into(),
+            views: vec![],
+            size: [1, 1],
+            path_frames: 0,
+            rows,
+            budget_ms: 0.0,
+            best_in_budget: None,
+        });
+        assert_eq!(c.front, [(1.0, 0.0), (3.0, -1.0)]);
     }
 }
