@@ -234,9 +234,9 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("merge cracks", 21),
     ("merge fly", 27),
     ("merge golden", 33),
-    ("merge tradeoff", 37),
-    ("merge check-gpu", 30),
-    ("merge export", 19),
+    ("merge tradeoff", 25),
+    ("merge check-gpu", 31),
+    ("merge export", 23),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -583,9 +583,9 @@ const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("cracks", 78),
     ("fly", 78),
     ("golden", 66),
-    ("tradeoff", 85),
-    ("check-gpu", 70),
-    ("export", 84),
+    ("tradeoff", 68),
+    ("check-gpu", 73),
+    ("export", 88),
 ];
 
 /// `terraclip merge` of the two parts written to files: an exit with a
