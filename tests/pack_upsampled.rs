@@ -265,3 +265,55 @@ fn a_flight_over_an_upsampled_pack_decoded_as_it_goes_holds_the_whole_decode() {
     assert!(windows >= 48 * 5, "{windows} windows checked");
     assert!(evicted > 100, "the flight leaves tiles behind: {evicted}");
 }
+
+/// What a GPU pass is told to rebuild from residuals: over an upsampled
+/// pack, each level but the coarsest has the step 2E as an f32, and the
+/// coarsest none; synthesised levels stacked over the pack have none, and
+/// the pack's levels beneath them keep theirs at their new indices; a
+/// lossless pack has none at all.
+#[test]
+fn the_residual_steps_are_the_packs_under_synthesis_too() {
+    use terraclip::frame::stats::Passes;
+    use terraclip::pack::{stream, Predictor};
+    use terraclip::render::Session;
+    use terraclip::terrain::procedural::Procedural;
+    use terraclip::terrain::rows::ProceduralRows;
+    let p = Procedural::new(11, 513, 385);
+    let mut steps = |predictor: Predictor, e: f64, synth: Option<usize>| {
+        let path = tmp(&format!("steps-{predictor:?}-{synth:?}.tcz"));
+        let mut o = stream::Options::new(e, 32, Filter::default(), "steps");
+        o.predictor = predictor;
+        stream::pack(
+            &ProceduralRows::new(p.clone()).unwrap(),
+            &path,
+            &o,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        let mut scene = terraclip::scene::Scene::bench_scene();
+        (scene.terrain.procedural, scene.terrain.file) = (None, Some(path));
+        scene.terrain.synthesis = synth.map(|levels| terraclip::synthesis::source::Spec {
+            levels,
+            roughness: None,
+            seed: 5,
+        });
+        let session = Session::new(&scene, &mut Passes::default()).unwrap();
+        let pyr = session.pyramid();
+        (0..pyr.levels.len())
+            .map(|l| pyr.residual_step(l))
+            .collect::<Vec<_>>()
+    };
+    let own = steps(Predictor::Upsampled, 0.5, None);
+    let n = own.len();
+    assert!(n >= 4, "{own:?}");
+    let mut want = vec![Some(1.0f32); n - 1];
+    want.push(None);
+    assert_eq!(own, want);
+    let stacked = steps(Predictor::Upsampled, 0.5, Some(2));
+    let mut want = vec![None, None];
+    want.extend(own.iter().copied());
+    assert_eq!(stacked, want);
+    assert!(steps(Predictor::Lifting, 0.5, Some(1))
+        .iter()
+        .all(Option::is_none));
+}
