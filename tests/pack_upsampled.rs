@@ -279,7 +279,7 @@ fn the_residual_steps_are_the_packs_under_synthesis_too() {
     use terraclip::terrain::procedural::Procedural;
     use terraclip::terrain::rows::ProceduralRows;
     let p = Procedural::new(11, 513, 385);
-    let mut steps = |predictor: Predictor, e: f64, synth: Option<usize>| {
+    let steps = |predictor: Predictor, e: f64, synth: Option<usize>| {
         let path = tmp(&format!("steps-{predictor:?}-{synth:?}.tcz"));
         let mut o = stream::Options::new(e, 32, Filter::default(), "steps");
         o.predictor = predictor;

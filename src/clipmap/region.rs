@@ -223,7 +223,7 @@ pub fn compute_into(p: &RegionParams, viewer: [f64; 2], out: &mut Vec<LevelRegio
 /// (n − 1)/2 − w − 1 coarse texels, so the coarser vertices the finer
 /// boundary meets keep their own heights and the finer boundary, whose
 /// morph is 1, meets them exactly. That range also lies inside the coarser
-/// window eroded by 2 coarse texels (w ≥ 1), where [`activate`] keeps
+/// window eroded by 2 coarse texels (w ≥ 1), where the active regions keep
 /// finer regions, and holds the viewer's own chain (f − m or f − m + 1 for
 /// w ≤ m − 3), so wants of `None` everywhere give [`compute_into`]'s
 /// regions.
