@@ -1051,17 +1051,10 @@ fn evicted_tiles_give_their_pages_back() {
     use std::sync::Arc;
     use terraclip::pack::{reader::PackReader, stream};
     use terraclip::terrain::procedural::Procedural;
-    use terraclip::terrain::rows::ProceduralRows;
     let path = tmp("evict.tcz");
     let o = stream::Options::new(0.0, 32, Filter::default(), "evict");
     let p = Procedural::new(11, 4097, 257);
-    stream::pack(
-        &ProceduralRows::new(p.clone()).unwrap(),
-        &path,
-        &o,
-        &mut |_, _| {},
-    )
-    .unwrap();
+    common::pack_procedural(&p, &path, &o);
     let whole = p.generate().unwrap();
     let reader = PackReader::open(&path).unwrap();
     let mut pyr = Pyramid::decoded(Arc::new(reader), Filter::default(), u64::MAX).unwrap();

@@ -277,19 +277,12 @@ fn the_residual_steps_are_the_packs_under_synthesis_too() {
     use terraclip::pack::{stream, Predictor};
     use terraclip::render::Session;
     use terraclip::terrain::procedural::Procedural;
-    use terraclip::terrain::rows::ProceduralRows;
     let p = Procedural::new(11, 513, 385);
     let steps = |predictor: Predictor, e: f64, synth: Option<usize>| {
         let path = tmp(&format!("steps-{predictor:?}-{synth:?}.tcz"));
         let mut o = stream::Options::new(e, 32, Filter::default(), "steps");
         o.predictor = predictor;
-        stream::pack(
-            &ProceduralRows::new(p.clone()).unwrap(),
-            &path,
-            &o,
-            &mut |_, _| {},
-        )
-        .unwrap();
+        common::pack_procedural(&p, &path, &o);
         let mut scene = terraclip::scene::Scene::bench_scene();
         (scene.terrain.procedural, scene.terrain.file) = (None, Some(path));
         scene.terrain.synthesis = synth.map(|levels| terraclip::synthesis::source::Spec {

@@ -120,6 +120,21 @@ pub fn stitch_reach(r: [i64; 4]) -> [i64; 4] {
     [r[0] - 1, r[1] - 1, r[2], r[3]]
 }
 
+/// The world box of the texels rectangle `r` of a level of spacing `g`
+/// can reach ([`stitch_reach`]), over heights `[zlo, zhi]`.
+fn reach_box(world: &WorldMap, r: [i64; 4], g: i64, zlo: f32, zhi: f32) -> (DVec3, DVec3) {
+    let s = g as f64;
+    let reach = stitch_reach(r);
+    world.aabb(
+        reach[0] as f64 * s,
+        reach[1] as f64 * s,
+        r[2] as f64 * s,
+        r[3] as f64 * s,
+        zlo as f64,
+        zhi as f64,
+    )
+}
+
 /// Culls and crops a closed rectangle of level-l texels `[x0,y0,x1,y1]`
 /// (level spacing `g` base texels) whose heights lie in `[zlo, zhi]`.
 /// Returns the cropped rectangle, or `None` if nothing of it is visible.
@@ -132,15 +147,7 @@ pub fn cull_rect(
     zhi: f32,
 ) -> Option<[i64; 4]> {
     let s = g as f64;
-    let reach = stitch_reach(r);
-    let (lo, hi) = world.aabb(
-        reach[0] as f64 * s,
-        reach[1] as f64 * s,
-        r[2] as f64 * s,
-        r[3] as f64 * s,
-        zlo as f64,
-        zhi as f64,
-    );
+    let (lo, hi) = reach_box(world, r, g, zlo, zhi);
     match classify(f, lo, hi) {
         Class::Outside => None,
         Class::Inside => Some(r),
@@ -178,16 +185,7 @@ pub fn cull_blocks(
     out: &mut Vec<[i64; 4]>,
 ) {
     let (zlo, zhi) = range(stitch_reach(r));
-    let s = g as f64;
-    let reach = stitch_reach(r);
-    let (lo, hi) = world.aabb(
-        reach[0] as f64 * s,
-        reach[1] as f64 * s,
-        r[2] as f64 * s,
-        r[3] as f64 * s,
-        zlo as f64,
-        zhi as f64,
-    );
+    let (lo, hi) = reach_box(world, r, g, zlo, zhi);
     match classify(f, lo, hi) {
         Class::Outside => {}
         Class::Inside => out.push(r),

@@ -226,3 +226,14 @@ pub fn cli(args: &[&str]) -> (i32, String, String) {
         String::from_utf8_lossy(&out.stderr).into(),
     )
 }
+
+/// Packs procedural map `p` to `path` with `o`, streamed in bands as
+/// `terraclip pack` does.
+pub fn pack_procedural(
+    p: &terraclip::terrain::procedural::Procedural,
+    path: &std::path::Path,
+    o: &terraclip::pack::stream::Options,
+) {
+    let rows = terraclip::terrain::rows::ProceduralRows::new(p.clone()).unwrap();
+    terraclip::pack::stream::pack(&rows, path, o, &mut |_, _| {}).unwrap();
+}
