@@ -748,7 +748,63 @@ fn release_runs(lv: &mut PyramidLevel, tiles: &Tiles, gone: &[[usize; 2]]) {
 
 #[cfg(test)]
 mod tests {
-    use super::uncovered;
+    use super::*;
+
+    /// Tiles of one height each, of whatever sizes a test names.
+    #[derive(Debug)]
+    struct Fake {
+        sizes: Vec<[usize; 2]>,
+        ranges: Vec<[f32; 2]>,
+    }
+
+    impl TileSource for Fake {
+        fn path(&self) -> &Path {
+            Path::new("fake.tcz")
+        }
+        fn sizes(&self) -> Vec<[usize; 2]> {
+            self.sizes.clone()
+        }
+        fn ranges(&self) -> Vec<[f32; 2]> {
+            self.ranges.clone()
+        }
+        fn tile(&self) -> usize {
+            32
+        }
+        fn reads(&self, _: usize, _: [usize; 2]) -> Option<[i64; 4]> {
+            None
+        }
+        fn decode(
+            &self,
+            _: usize,
+            _: [usize; 2],
+            _: &PyramidLevel,
+        ) -> Result<(Vec<f32>, Vec<bool>), String> {
+            Ok((vec![1.0; 32 * 32], vec![false; 32 * 32]))
+        }
+    }
+
+    fn fake(sizes: &[[usize; 2]], ranges: usize) -> Arc<dyn TileSource> {
+        Arc::new(Fake {
+            sizes: sizes.to_vec(),
+            ranges: vec![[0.0, 1.0]; ranges],
+        })
+    }
+
+    /// A source of no level, or whose sizes and ranges disagree, is an
+    /// error, as a pyramid and as finer levels; a good one counts every
+    /// tile of every level (65² in 32² tiles is 3 × 3).
+    #[test]
+    fn sources_of_no_level_or_mismatched_lists_are_errors() {
+        let f = Filter::default();
+        for (sizes, ranges) in [(vec![], 0), (vec![[65, 65]], 0), (vec![[65, 65]], 2)] {
+            assert!(Pyramid::decoded(fake(&sizes, ranges), f.clone(), 1).is_err());
+            let base = Pyramid::decoded(fake(&[[33, 33]], 1), f.clone(), 1).unwrap();
+            assert!(base.with_finer(fake(&sizes, ranges), 1).is_err());
+        }
+        let p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f.clone(), 1).unwrap();
+        assert_eq!(p.lazy_stats().unwrap().tiles_total, 9 + 2);
+        assert!(Pyramid::decoded(fake(&[[65, 65]], 1), f, 0).is_err());
+    }
 
     /// What a window newly covers: none when it stays, a strip when it
     /// moves, the whole window when the level had none (or was not drawn).
