@@ -322,6 +322,10 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     ] {
         assert!(r.rows.iter().any(|x| x.lod == lod), "no {lod} row");
     }
+    assert!(
+        r.rows.iter().any(|x| x.config.ends_with(" view")),
+        "no view-dependent clipmap row"
+    );
     let bf = r.rows.iter().find(|x| x.lod == "brute-force").unwrap();
     assert_eq!((bf.rmse, bf.max_abs, bf.popping), (0.0, 0, 0.0));
     assert!(bf.pareto, "nothing beats brute force's error");
@@ -365,6 +369,10 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     let svg = std::fs::read_to_string(dir.join("tradeoff.svg")).unwrap();
     assert!(svg.contains("ms per frame (log)") && svg.contains(">cdlod</text>"));
     assert!(image::open(dir.join("tradeoff.png")).is_ok());
+    // The low-FOV chart: the view-dependent clipmap is its own series.
+    let low = std::fs::read_to_string(dir.join("tradeoff-low-fov.svg")).unwrap();
+    assert!(low.contains("ms per low-FOV frame (log)") && low.contains(">clipmap (view)</text>"));
+    assert!(image::open(dir.join("tradeoff-low-fov.png")).is_ok());
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -369,6 +369,7 @@ fn three_tradeoff_shards_merged_equal_one_run_and_write_its_csv() {
         columns(&csv(&merged_dir), &keep)
     );
     assert!(merged_dir.join("tradeoff.png").is_file());
+    assert!(merged_dir.join("tradeoff-low-fov.png").is_file());
 }
 
 #[test]

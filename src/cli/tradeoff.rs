@@ -108,7 +108,10 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         ),
     }
     if a.shard.is_whole() {
-        println!("wrote {}/tradeoff.{{csv,svg,png}}", a.out.display());
+        println!(
+            "wrote {0}/tradeoff.{{csv,svg,png}} and {0}/tradeoff-low-fov.{{svg,png}}",
+            a.out.display()
+        );
     } else {
         println!(
             "part {}/{}: the front and budget above are this part's; `terraclip merge` the parts' --json output with --dir for the sweep's CSV and charts",
