@@ -797,11 +797,11 @@ mod tests {
     fn sources_of_no_level_or_mismatched_lists_are_errors() {
         let f = Filter::default();
         for (sizes, ranges) in [(vec![], 0), (vec![[65, 65]], 0), (vec![[65, 65]], 2)] {
-            assert!(Pyramid::decoded(fake(&sizes, ranges), f.clone(), 1).is_err());
-            let base = Pyramid::decoded(fake(&[[33, 33]], 1), f.clone(), 1).unwrap();
+            assert!(Pyramid::decoded(fake(&sizes, ranges), f, 1).is_err());
+            let base = Pyramid::decoded(fake(&[[33, 33]], 1), f, 1).unwrap();
             assert!(base.with_finer(fake(&sizes, ranges), 1).is_err());
         }
-        let p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f.clone(), 1).unwrap();
+        let p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f, 1).unwrap();
         assert_eq!(p.lazy_stats().unwrap().tiles_total, 9 + 2);
         assert!(Pyramid::decoded(fake(&[[65, 65]], 1), f, 0).is_err());
     }
