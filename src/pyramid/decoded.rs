@@ -792,7 +792,8 @@ mod tests {
 
     /// A source of no level, or whose sizes and ranges disagree, is an
     /// error, as a pyramid and as finer levels; a good one counts every
-    /// tile of every level (65² in 32² tiles is 3 × 3).
+    /// tile of every level (65² in 32² tiles is 3 × 3), and the tiles it
+    /// holds as it decodes them.
     #[test]
     fn sources_of_no_level_or_mismatched_lists_are_errors() {
         let f = Filter::default();
@@ -801,8 +802,22 @@ mod tests {
             let base = Pyramid::decoded(fake(&[[33, 33]], 1), f, 1).unwrap();
             assert!(base.with_finer(fake(&sizes, ranges), 1).is_err());
         }
-        let p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f, 1).unwrap();
+        let mut p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f, 1).unwrap();
         assert_eq!(p.lazy_stats().unwrap().tiles_total, 9 + 2);
+        // Decoding counts what it holds, level by level.
+        assert_eq!(p.tiles_resident(), Some(0));
+        p.decode_window(1, [0, 0, 32, 16]).unwrap();
+        assert_eq!(p.tiles_resident(), Some(2));
+        assert_eq!(p.tiles_resident_per_level(), Some(vec![0, 2]));
+        let whole = p.whole().unwrap();
+        assert!(whole
+            .levels
+            .iter()
+            .all(|l| l.data.iter().all(|&v| v == 1.0)));
+        // Finer levels add their tiles to the count: 3 × 3 over 2 × 2.
+        let base = Pyramid::decoded(fake(&[[33, 33]], 1), f, 1).unwrap();
+        let stacked = base.with_finer(fake(&[[65, 65]], 1), 1).unwrap();
+        assert_eq!(stacked.lazy_stats().unwrap().tiles_total, 4 + 9);
         assert!(Pyramid::decoded(fake(&[[65, 65]], 1), f, 0).is_err());
     }
 
