@@ -821,6 +821,34 @@ mod tests {
         assert!(Pyramid::decoded(fake(&[[65, 65]], 1), f, 0).is_err());
     }
 
+    /// The coarsest drawn level's window is decoded whatever the budget (a
+    /// budget of 1 sample), finer levels wait, and a frame reports the
+    /// samples it decoded itself, not the session's; a whole pyramid has
+    /// no window to decode.
+    #[test]
+    fn the_coarsest_window_is_decoded_whatever_the_budget() {
+        let f = Filter::default();
+        let mut p = Pyramid::decoded(fake(&[[65, 65], [33, 17]], 2), f, 1).unwrap();
+        let first = p.build_around(&[[0, 0, 64, 64], [0, 0, 32, 16]]);
+        assert_eq!(first.ready.end, 2);
+        assert!(
+            first.ready.contains(&1) && !first.ready.contains(&0),
+            "{:?}",
+            first.ready
+        );
+        assert_eq!(p.tiles_resident_per_level().unwrap()[1], 2);
+        let before = p.lazy_stats().unwrap().samples_built;
+        assert_eq!(first.samples, before);
+        assert!(before >= 33 * 17, "{before}");
+        let second = p.build_around(&[[0, 0, 64, 64], [0, 0, 32, 16]]);
+        assert_eq!(
+            second.samples,
+            p.lazy_stats().unwrap().samples_built - before
+        );
+        let mut whole = Pyramid::from_levels(vec![PyramidLevel::single()], f);
+        assert!(whole.decode_window(0, [0, 0, 0, 0]).is_ok());
+    }
+
     /// What a window newly covers: none when it stays, a strip when it
     /// moves, the whole window when the level had none (or was not drawn).
     #[test]
