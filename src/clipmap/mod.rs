@@ -633,9 +633,21 @@ impl Clipmap {
             let o = self.levels[l].regions.origin;
             [o[0] - 1, o[1] - 1, o[0] + self.n, o[1] + self.n]
         };
-        let (mut lo, mut hi) = self.pyramid.range_in(l, window(l));
+        self.morphed_range(l, window(l), || window(l + 1))
+    }
+
+    /// Bounds on level l's morphed heights over level texels `own`, whose
+    /// coarser samples lie in level l + 1's texels `coarser()` (asked only
+    /// where the level morphs, so never past the coarsest).
+    fn morphed_range(
+        &self,
+        l: usize,
+        own: [i64; 4],
+        coarser: impl FnOnce() -> [i64; 4],
+    ) -> (f32, f32) {
+        let (mut lo, mut hi) = self.pyramid.range_in(l, own);
         if self.levels[l].morph.enabled {
-            let (a, b) = self.pyramid.range_in(l + 1, window(l + 1));
+            let (a, b) = self.pyramid.range_in(l + 1, coarser());
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -671,16 +683,10 @@ impl Clipmap {
             // bounds of its own reach (and of the coarser level it morphs
             // toward, as `height_range` takes them).
             Some((f, w)) if !self.wants.is_empty() => {
-                let morphs = lv.morph.enabled;
                 let range = |at: [i64; 4]| {
-                    let (mut lo, mut hi) = self.pyramid.range_in(l, at);
-                    if morphs {
-                        let c = [at[0] >> 1, at[1] >> 1, (at[2] + 1) >> 1, (at[3] + 1) >> 1];
-                        let (a, b) = self.pyramid.range_in(l + 1, c);
-                        lo = lo.min(a);
-                        hi = hi.max(b);
-                    }
-                    (lo, hi)
+                    self.morphed_range(l, at, || {
+                        [at[0] >> 1, at[1] >> 1, (at[2] + 1) >> 1, (at[3] + 1) >> 1]
+                    })
                 };
                 let mut out = Vec::new();
                 for r in level_rects {

@@ -77,7 +77,7 @@ fn place(hits: &[([f64; 2], f64)], per_texel: f64, levels: usize) -> Vec<Option<
         } else {
             0
         };
-        for b in &mut boxes[l.min(levels.saturating_sub(1))..] {
+        for b in &mut boxes[l..] {
             let [x0, y0, x1, y1] = b.get_or_insert([q[0], q[1], q[0], q[1]]);
             (*x0, *y0, *x1, *y1) = (x0.min(q[0]), y0.min(q[1]), x1.max(q[0]), y1.max(q[1]));
         }
