@@ -420,6 +420,7 @@ fn merge_seeds(d: &Path) -> Vec<(&'static str, [Part; 2])> {
             path_frames: 2,
             quick: true,
             shard,
+            gpu: false,
         };
         let r = terraclip::studies::tradeoff::run(&scene, &o, |_| {}).unwrap();
         serde_json::to_value(r).unwrap()

@@ -301,13 +301,28 @@ fn the_view_dependent_clipmap_sees_what_a_narrow_view_sees() {
     assert!(eye > 3.0 * 5.29, "eye {eye}");
 }
 
+/// Whether the sweep below also draws on the GPU: always under
+/// `TERRACLIP_REQUIRE_GPU=1` (set by `.ci/run`), else where an adapter
+/// opens.
+fn with_gpu() -> bool {
+    #[cfg(feature = "gpu")]
+    {
+        std::env::var("TERRACLIP_REQUIRE_GPU").is_ok_and(|v| v == "1")
+            || terraclip::gpu::Gpu::new(terraclip::gpu::Api::Vulkan).is_ok()
+    }
+    #[cfg(not(feature = "gpu"))]
+    false
+}
+
 #[test]
 fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
+    let gpu = with_gpu();
     let opts = terraclip::studies::tradeoff::Options {
         size: [64, 36],
         path_frames: 4,
         quick: true,
         shard: WHOLE,
+        gpu,
     };
     let r = terraclip::studies::tradeoff::run(&scene(), &opts, |_| {}).unwrap();
     for lod in [
@@ -373,7 +388,43 @@ fn tradeoff_rows_cover_every_scheme_and_measure_what_they_claim() {
     let low = std::fs::read_to_string(dir.join("tradeoff-low-fov.svg")).unwrap();
     assert!(low.contains("ms per low-FOV frame (log)") && low.contains(">clipmap (view)</text>"));
     assert!(image::open(dir.join("tradeoff-low-fov.png")).is_ok());
+    let cpu_lod = std::fs::read_to_string(dir.join("tradeoff-cpu-lod.svg")).unwrap();
+    assert!(cpu_lod.contains("ms of LOD update and mesh generation per frame (log)"));
+    if gpu {
+        gpu_costs_are_measured(&r, &dir);
+    }
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The sweep's GPU side: every row drawn, with its draw calls and upload.
+/// Brute force's mesh never changes, so along the path it sends only the
+/// frame's uniforms; every clipmap row sends those and its dirty texels,
+/// so more. Pass times are there exactly when the adapter has timestamp
+/// queries, and the upload and GPU charts are written.
+fn gpu_costs_are_measured(r: &terraclip::studies::tradeoff::Report, dir: &Path) {
+    let g = |x: &terraclip::studies::tradeoff::Row| {
+        x.gpu
+            .clone()
+            .unwrap_or_else(|| panic!("no GPU costs: {x:?}"))
+    };
+    let bf = g(r.rows.iter().find(|x| x.lod == "brute-force").unwrap());
+    let timed = bf.ms.is_some();
+    for x in &r.rows {
+        let c = g(x);
+        println!(
+            "{} {}: {:.0} B/frame, {:.1} draws, {:?} ms",
+            x.lod, x.config, c.upload_bytes, c.draw_calls, c.ms
+        );
+        assert!(c.draw_calls >= 1.0 && c.upload_bytes > 0.0, "{x:?}");
+        assert_eq!(c.ms.is_some(), timed, "{x:?}");
+        if x.lod == "clipmap" {
+            assert!(c.upload_bytes > bf.upload_bytes, "{x:?} against {bf:?}");
+        }
+    }
+    assert_eq!(bf.draw_calls, 1.0);
+    let svg = std::fs::read_to_string(dir.join("tradeoff-upload.svg")).unwrap();
+    assert!(svg.contains("bytes uploaded per frame along the path (log)"));
+    assert_eq!(dir.join("tradeoff-gpu.svg").exists(), timed);
 }
 
 /// Popping, per frame, is the part of the image's change that brute force's

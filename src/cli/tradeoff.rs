@@ -26,6 +26,12 @@ pub struct Args {
     /// parts' JSON and writes the CSV and charts).
     #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
     pub shard: Shard,
+    /// Also draw every setting with the wgpu back end (Vulkan) and report
+    /// what a GPU renderer pays: bytes uploaded per frame, draw calls and
+    /// the render pass's GPU time (timestamp queries, where the adapter
+    /// has them).
+    #[arg(long)]
+    pub gpu: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -49,6 +55,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         path_frames: a.path_frames,
         quick: a.quick,
         shard: a.shard,
+        gpu: a.gpu,
     };
     let count = tradeoff::settings(&s, a.quick)?.len();
     let mine = (0..count).filter(|&k| a.shard.owns(k)).count();
@@ -69,10 +76,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     if a.json {
         let of = format!(
-            "{} --path-frames {} --quick {}",
+            "{} --path-frames {} --quick {} --gpu {}",
             a.args.describe(&a.scene),
             a.path_frames,
-            a.quick
+            a.quick,
+            a.gpu
         );
         let mut v = shard::tag(serde_json::to_value(&report)?, "tradeoff", a.shard, &of);
         v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
@@ -97,6 +105,25 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             if r.pareto { "  *" } else { "" }
         );
     }
+    if let Some(g) = report.rows.iter().find_map(|r| r.gpu.as_ref()) {
+        println!("\non {}:", g.adapter);
+        println!(
+            "{:<12} {:<26} {:>10} {:>14} {:>7} {:>9}",
+            "lod", "config", "cpu lod ms", "upload B/frame", "draws", "gpu ms"
+        );
+        for r in &report.rows {
+            let Some(g) = &r.gpu else { continue };
+            println!(
+                "{:<12} {:<26} {:>10.3} {:>14.0} {:>7.1} {:>9}",
+                r.lod,
+                r.config,
+                r.ms_cpu_lod(),
+                g.upload_bytes,
+                g.draw_calls,
+                g.ms.map_or("no timestamp queries".into(), |m| format!("{m:.3}"))
+            );
+        }
+    }
     match &report.best_in_budget {
         Some(b) => println!(
             "within 1/10 of brute force ({:.2} ms): {} {} has the lowest RMSE, {:.3}",
@@ -109,8 +136,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     if a.shard.is_whole() {
         println!(
-            "wrote {0}/tradeoff.{{csv,svg,png}} and {0}/tradeoff-low-fov.{{svg,png}}",
-            a.out.display()
+            "wrote {0}/tradeoff.{{csv,svg,png}}, {0}/tradeoff-low-fov.{{svg,png}} and the per-cost charts {1}",
+            a.out.display(),
+            tradeoff::cost_charts(&report)
+                .iter()
+                .map(|(stem, _)| format!("{stem}.{{svg,png}}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     } else {
         println!(

@@ -29,6 +29,15 @@ pub struct Gpu {
     /// forbid it for Rg32Float, and creating one anyway is a validation
     /// error, which wgpu turns into a panic.
     pub toroid_storage: bool,
+    /// Bytes written to buffers and textures since the device opened:
+    /// every upload goes through [`Gpu::buffer_init`], [`Gpu::write_buffer`]
+    /// or [`Gpu::write_texture`], so a frame's upload is the difference of
+    /// this counter around it, counted from what was written rather than
+    /// modelled.
+    uploaded: std::sync::atomic::AtomicU64,
+    /// Whether the device was opened with timestamp queries, so a render
+    /// pass can be timed on the GPU's own clock.
+    pub timestamps: bool,
 }
 
 impl Gpu {
@@ -67,9 +76,15 @@ impl Gpu {
                 .allowed_usages
                 .contains(wgpu::TextureUsages::STORAGE_BINDING)
         });
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features = match timestamps {
+            true => wgpu::Features::TIMESTAMP_QUERY,
+            false => wgpu::Features::empty(),
+        };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("terraclip"),
             required_limits: adapter.limits(),
+            required_features,
             ..Default::default()
         }))
         .map_err(|e| Error::value("gpu", format!("{}: cannot open device: {e}", info.name)))?;
@@ -82,7 +97,58 @@ impl Gpu {
             info,
             api,
             toroid_storage,
+            uploaded: Default::default(),
+            timestamps,
         })
+    }
+
+    /// Bytes uploaded since the device opened (buffers and textures).
+    pub fn uploaded(&self) -> u64 {
+        self.uploaded.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn count(&self, bytes: usize) {
+        self.uploaded
+            .fetch_add(bytes as u64, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// A buffer created holding `bytes`, counted as uploaded. An empty
+    /// `bytes` gets 16 zero bytes, because a binding must not be empty.
+    pub(crate) fn buffer_init(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        let pad = [0u8; 16];
+        let contents = if bytes.is_empty() { &pad[..] } else { bytes };
+        self.count(contents.len());
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+    }
+
+    /// `queue.write_buffer`, counted as uploaded.
+    pub(crate) fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, bytes: &[u8]) {
+        self.count(bytes.len());
+        self.queue.write_buffer(buffer, offset, bytes);
+    }
+
+    /// `queue.write_texture`, counted as uploaded (the bytes given, padding
+    /// of rows included, since that is what crosses to the device).
+    pub(crate) fn write_texture(
+        &self,
+        dst: wgpu::TexelCopyTextureInfo,
+        bytes: &[u8],
+        layout: wgpu::TexelCopyBufferLayout,
+        size: wgpu::Extent3d,
+    ) {
+        self.count(bytes.len());
+        self.queue.write_texture(dst, bytes, layout, size);
     }
 
     /// Adapter name as the driver reports it.

@@ -10,8 +10,20 @@
 //! toroid (Brettell). Effects run in the fragment shader, reading the
 //! lightmap and normal maps as textures with explicit texel loads.
 //!
-//! Meshes no clipmap made (brute force) are passed through: the CPU vertex
-//! stage's clip positions and varyings, in a storage buffer.
+//! Meshes no clipmap made (brute force, ROAM, CBT, …) are drawn on Vulkan
+//! from a resident buffer of their view-independent vertices, which the
+//! shader transforms each frame as the CPU vertex stage does. Frames with
+//! no grid places (read back from an export), and every CPU-made mesh on
+//! GL, are passed through instead: the CPU vertex stage's clip positions
+//! and varyings, written each frame. GL's compiler may fuse the shader's
+//! multiply-adds, and on the CBT golden that put 176 pixels outside the
+//! tie band that the passed-through vertices stay within.
+//!
+//! Buffers persist across frames and only their changed words are written,
+//! and every write is counted ([`Gpu::uploaded`]), so a frame's
+//! [`FrameCosts`] say what a GPU renderer built this way uploads, how many
+//! draw calls it makes, and, where the adapter has timestamp queries, how
+//! long the GPU took.
 
 pub(crate) mod device;
 mod textures;
@@ -31,9 +43,9 @@ use crate::terrain::world::WorldMap;
 use std::collections::HashMap;
 use textures::{Atlas, ToroidTextures};
 use uniforms::{
-    Draw, Globals, PassVertex, MAX_LEVELS, MODE_FOOTPRINT, MODE_PASSTHROUGH, MODE_STRIPS,
+    Draw, Globals, MeshVertex, PassVertex, MAX_LEVELS, MODE_FOOTPRINT, MODE_MESH, MODE_PASSTHROUGH,
+    MODE_STRIPS,
 };
-use wgpu::util::DeviceExt;
 
 /// The terrain shader, after the helpers it shares with the update pass.
 pub(crate) const SHADER: &str = concat!(
@@ -110,7 +122,89 @@ impl TexelCheck {
 struct DrawList {
     draws: Vec<(Draw, std::ops::Range<u32>)>,
     strips: Vec<u32>,
+    mesh: Vec<MeshVertex>,
     passthrough: Vec<PassVertex>,
+}
+
+/// What one [`GpuRenderer::draw`] cost the device: the figures a GPU
+/// renderer's frame is judged by besides its image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct FrameCosts {
+    /// Bytes written to the device in the frame: uniforms, the changed
+    /// words of the index and vertex buffers, toroid texels, residuals,
+    /// and the shading atlases.
+    pub upload_bytes: u64,
+    /// Draw calls issued.
+    pub draw_calls: u64,
+    /// The render pass's time on the GPU's clock (ms), from timestamp
+    /// queries; `None` where the adapter has none.
+    pub gpu_ms: Option<f64>,
+}
+
+/// A storage buffer kept across frames: each frame writes only the runs of
+/// 32-bit words that differ from what it holds, so the upload counted is
+/// the change, as a renderer keeping its geometry resident would send.
+struct Resident {
+    buffer: wgpu::Buffer,
+    /// What the buffer holds, for the next frame's comparison.
+    held: Vec<u32>,
+}
+
+/// Words equal between runs shorter than this are written with them: one
+/// write of a few extra bytes costs less than two writes.
+const RUN_GAP_WORDS: usize = 8;
+
+/// The runs of `new` to write over `old` (word ranges): words past `old`'s
+/// end are all written, and runs closer than [`RUN_GAP_WORDS`] are joined.
+fn changed_runs(old: &[u32], new: &[u32]) -> Vec<std::ops::Range<usize>> {
+    let mut runs: Vec<std::ops::Range<usize>> = vec![];
+    for (i, w) in new.iter().enumerate() {
+        if old.get(i) == Some(w) {
+            continue;
+        }
+        match runs.last_mut() {
+            Some(r) if i - r.end < RUN_GAP_WORDS => r.end = i + 1,
+            _ => runs.push(i..i + 1),
+        }
+    }
+    runs
+}
+
+impl Resident {
+    /// Makes the buffer hold `words` (its first `words.len()`), writing
+    /// the changed runs, or a new buffer with room to grow when it is too
+    /// small.
+    fn hold(
+        gpu: &Gpu,
+        slot: &mut Option<Resident>,
+        words: &[u32],
+        label: &str,
+        usage: wgpu::BufferUsages,
+    ) {
+        let fits = slot
+            .as_ref()
+            .is_some_and(|r| r.buffer.size() >= 4 * words.len().max(4) as u64);
+        if !fits {
+            let size = 4 * words.len().max(4).next_power_of_two() as u64;
+            let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: usage | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            *slot = Some(Resident {
+                buffer,
+                held: vec![],
+            });
+        }
+        let r = slot.as_mut().expect("made above");
+        for run in changed_runs(&r.held, words) {
+            let (a, b) = (run.start, run.end);
+            gpu.write_buffer(&r.buffer, 4 * a as u64, bytemuck::cast_slice(&words[a..b]));
+        }
+        r.held.clear();
+        r.held.extend_from_slice(words);
+    }
 }
 
 /// Corner range of each static shape in the footprint buffer.
@@ -133,6 +227,17 @@ pub struct GpuRenderer {
     residual_bytes: u64,
     /// Static footprint corners for the current n: (n, buffer, range per shape).
     footprints: Option<(i64, wgpu::Buffer, ShapeRanges)>,
+    /// The clipmap's strip indices, kept across frames.
+    strips: Option<Resident>,
+    /// Resident vertices of meshes no clipmap made.
+    mesh: Option<Resident>,
+    /// The per-draw uniforms (one 256-byte slot each), kept across frames.
+    draw_slots: Option<Resident>,
+    /// Two timestamps around the render pass, where the device has them:
+    /// the query set, its resolve buffer and a mappable copy.
+    timer: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    /// What the last [`GpuRenderer::draw`] cost.
+    costs: FrameCosts,
 }
 
 fn i32_of(v: i64, what: &str) -> Result<i32> {
@@ -190,7 +295,13 @@ impl GpuRenderer {
         });
         let g1 = d.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("draw"),
-            entries: &[uniform(0, true), storage(1), storage(2), storage(3)],
+            entries: &[
+                uniform(0, true),
+                storage(1),
+                storage(2),
+                storage(3),
+                storage(4),
+            ],
         });
         let pipeline_layout = d.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("terrain"),
@@ -208,7 +319,17 @@ impl GpuRenderer {
             texels_made: 0,
             residual_bytes: 0,
             footprints: None,
+            strips: None,
+            mesh: None,
+            draw_slots: None,
+            timer: None,
+            costs: FrameCosts::default(),
         }
+    }
+
+    /// What the last [`GpuRenderer::draw`] uploaded, drew and took.
+    pub fn costs(&self) -> FrameCosts {
+        self.costs
     }
 
     /// Drops the toroidal textures, so the next clipmap draw uploads every
@@ -403,20 +524,12 @@ impl GpuRenderer {
             }
             ranges.insert(id, (start, corners.len() as u32));
         }
-        let buf = self.storage(bytemuck::cast_slice(&corners), "footprints");
+        let buf = self.gpu.buffer_init(
+            "footprints",
+            bytemuck::cast_slice(&corners),
+            wgpu::BufferUsages::STORAGE,
+        );
         self.footprints = Some((n, buf, ranges));
-    }
-
-    fn storage(&self, bytes: &[u8], label: &str) -> wgpu::Buffer {
-        // A binding must not be empty.
-        let pad = [0u8; 16];
-        self.gpu
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: if bytes.is_empty() { &pad } else { bytes },
-                usage: wgpu::BufferUsages::STORAGE,
-            })
     }
 
     /// The per-draw uniforms and the geometry they index: a clipmap's
@@ -428,6 +541,7 @@ impl GpuRenderer {
         let need_gradients = e.lit() && !e.normal_map;
         let mut draws: Vec<(Draw, std::ops::Range<u32>)> = vec![];
         let mut strips: Vec<u32> = vec![];
+        let mut mesh: Vec<MeshVertex> = vec![];
         let mut passthrough: Vec<PassVertex> = vec![];
         if let Some(c) = clip {
             let cm = c.clipmap;
@@ -485,6 +599,14 @@ impl GpuRenderer {
                     stitched: m.stitched.map(i32::from),
                     flags: [m.enabled as i32, m.enabled as i32, 0, 0],
                 };
+                // Toroid address → window-local index: the list then
+                // changes only where the level's regions move within the
+                // window, not each time the window scrolls.
+                let t0 = [o[0].rem_euclid(n), o[1].rem_euclid(n)];
+                let local = |i: u32| {
+                    let (x, y) = (i as i64 % n, i as i64 / n);
+                    ((x - t0[0]).rem_euclid(n) + n * (y - t0[1]).rem_euclid(n)) as u32
+                };
                 let mut slot = |mode: i32, inst: [i32; 2], range: std::ops::Range<u32>| {
                     let mut d = base;
                     d.level[3] = mode;
@@ -495,7 +617,7 @@ impl GpuRenderer {
                     LevelGeometry::Strips { strip } => {
                         let start = strips.len() as u32;
                         for t in footprint::strip_to_triangles(strip).iter() {
-                            strips.extend_from_slice(t);
+                            strips.extend(t.iter().map(|&i| local(i)));
                         }
                         slot(MODE_STRIPS, [0, 0], start..strips.len() as u32);
                     }
@@ -510,53 +632,115 @@ impl GpuRenderer {
                         if !edge.is_empty() {
                             let start = strips.len() as u32;
                             for t in edge {
-                                strips.extend_from_slice(t);
+                                strips.extend(t.iter().map(|&i| local(i)));
                             }
                             slot(MODE_STRIPS, [0, 0], start..strips.len() as u32);
                         }
                     }
                 }
             }
+        } else if frame.mesh.vertices.len() == frame.positions.len() && self.gpu.api == Api::Vulkan
+        {
+            mesh = Self::mesh_vertices(frame)?;
+            let origin = [
+                i32_of(u.origin[0], "floating origin")?,
+                i32_of(u.origin[1], "floating origin")?,
+                0,
+                0,
+            ];
+            Self::level_draws(frame, MODE_MESH, origin, &mut draws);
         } else {
-            // Passthrough: one draw per run of triangles on the same level.
-            let lay = &frame.layout;
-            let k = lay.len();
-            passthrough = (0..frame.positions.len())
-                .map(|i| {
-                    let a = &frame.attrs[i * k..(i + 1) * k];
-                    let get = |dst: &mut [f32], src: Option<usize>| {
-                        if let Some(s) = src {
-                            dst.copy_from_slice(&a[s..s + dst.len()]);
-                        }
-                    };
-                    let mut v = PassVertex {
-                        clip: u.clip(frame.positions[i]),
-                        ..Default::default()
-                    };
-                    get(&mut v.albedo, lay.albedo);
-                    get(&mut v.normal, lay.normal);
-                    get(&mut v.uv, lay.uv);
-                    get(std::slice::from_mut(&mut v.alpha), lay.alpha);
-                    get(std::slice::from_mut(&mut v.fog), lay.fog);
-                    get(&mut v.view, lay.view);
-                    get(&mut v.edge, lay.edge);
-                    v
-                })
-                .collect();
-            for (l, t, end) in crate::lod::LodMesh::level_runs(&frame.mesh.levels) {
-                let d = Draw {
-                    level: [l as i32, 1, 1, MODE_PASSTHROUGH],
-                    ..Default::default()
-                };
-                draws.push((d, 3 * t as u32..3 * end as u32));
-            }
+            passthrough = Self::passed_through(frame);
+            Self::level_draws(frame, MODE_PASSTHROUGH, [0; 4], &mut draws);
         }
 
         Ok(DrawList {
             draws,
             strips,
+            mesh,
             passthrough,
         })
+    }
+
+    /// One draw of `mode` per run of the frame's triangles on one level.
+    fn level_draws(
+        frame: &Frame,
+        mode: i32,
+        origin: [i32; 4],
+        draws: &mut Vec<(Draw, std::ops::Range<u32>)>,
+    ) {
+        for (l, t, end) in crate::lod::LodMesh::level_runs(&frame.mesh.levels) {
+            let d = Draw {
+                level: [l as i32, 1, 1, mode],
+                origin,
+                ..Default::default()
+            };
+            draws.push((d, 3 * t as u32..3 * end as u32));
+        }
+    }
+
+    /// The frame's mesh as resident vertices: grid places, heights and
+    /// morph from the LOD scheme, normals and level texel coordinates from
+    /// the CPU vertex stage (view-independent both).
+    fn mesh_vertices(frame: &Frame) -> Result<Vec<MeshVertex>> {
+        let lay = &frame.layout;
+        let k = lay.len();
+        frame
+            .mesh
+            .vertices
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let a = &frame.attrs[i * k..(i + 1) * k];
+                let mut m = MeshVertex {
+                    grid: [
+                        i32_of(v.col, "vertex column")?,
+                        i32_of(v.row, "vertex row")?,
+                    ],
+                    offset: v.offset,
+                    z: v.z,
+                    zc: v.zc,
+                    alpha: v.alpha,
+                    ..Default::default()
+                };
+                if let Some(s) = lay.normal {
+                    m.normal.copy_from_slice(&a[s..s + 3]);
+                }
+                if let Some(s) = lay.uv {
+                    m.uv.copy_from_slice(&a[s..s + 2]);
+                }
+                Ok(m)
+            })
+            .collect()
+    }
+
+    /// The CPU vertex stage's clip positions and varyings.
+    fn passed_through(frame: &Frame) -> Vec<PassVertex> {
+        let u = &frame.uniforms;
+        let lay = &frame.layout;
+        let k = lay.len();
+        (0..frame.positions.len())
+            .map(|i| {
+                let a = &frame.attrs[i * k..(i + 1) * k];
+                let get = |dst: &mut [f32], src: Option<usize>| {
+                    if let Some(s) = src {
+                        dst.copy_from_slice(&a[s..s + dst.len()]);
+                    }
+                };
+                let mut v = PassVertex {
+                    clip: u.clip(frame.positions[i]),
+                    ..Default::default()
+                };
+                get(&mut v.albedo, lay.albedo);
+                get(&mut v.normal, lay.normal);
+                get(&mut v.uv, lay.uv);
+                get(std::slice::from_mut(&mut v.alpha), lay.alpha);
+                get(std::slice::from_mut(&mut v.fog), lay.fog);
+                get(&mut v.view, lay.view);
+                get(&mut v.edge, lay.edge);
+                v
+            })
+            .collect()
     }
 
     /// The uniforms every draw of `frame` shares.
@@ -619,10 +803,12 @@ impl GpuRenderer {
 
     /// Draws `frame`; with `clip`, from the clipmap's toroidal textures.
     pub fn draw(&mut self, frame: &Frame, clip: Option<ClipDraw>) -> Result<Image> {
+        let uploaded = self.gpu.uploaded();
         let (w, h) = (frame.width, frame.height);
         let DrawList {
             draws,
             strips,
+            mesh,
             passthrough,
         } = self.draw_list(frame, clip.as_ref())?;
         let lm = frame.resources.lightmap.as_ref();
@@ -630,27 +816,41 @@ impl GpuRenderer {
         let nm_atlas = Atlas::normal_maps(&self.gpu, &frame.resources.normal_maps)?;
         let gl = Self::globals(frame, clip.as_ref(), &lm_atlas, &nm_atlas)?;
 
-        let dev = &self.gpu.device;
-        let globals = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("globals"),
-            contents: bytemuck::bytes_of(&gl),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let globals = self.gpu.buffer_init(
+            "globals",
+            bytemuck::bytes_of(&gl),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let mut draw_bytes = vec![0u8; draws.len().max(1) * DRAW_STRIDE as usize];
         for (i, (d, _)) in draws.iter().enumerate() {
             let b = bytemuck::bytes_of(d);
             let at = i * DRAW_STRIDE as usize;
             draw_bytes[at..at + b.len()].copy_from_slice(b);
         }
-        let draw_buf = dev.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("draws"),
-            contents: &draw_bytes,
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-        let strip_buf = self.storage(bytemuck::cast_slice(&strips), "strips");
-        let pt_buf = self.storage(bytemuck::cast_slice(&passthrough), "passthrough");
-        let empty = self.storage(&[], "empty");
+        let storage = wgpu::BufferUsages::STORAGE;
+        let gpu = &self.gpu;
+        let words: &[u32] = bytemuck::cast_slice(&draw_bytes);
+        Resident::hold(
+            gpu,
+            &mut self.draw_slots,
+            words,
+            "draws",
+            wgpu::BufferUsages::UNIFORM,
+        );
+        Resident::hold(gpu, &mut self.strips, &strips, "strips", storage);
+        let words: &[u32] = bytemuck::cast_slice(&mesh);
+        Resident::hold(gpu, &mut self.mesh, words, "mesh", storage);
+        fn held(r: &Option<Resident>) -> &wgpu::Buffer {
+            &r.as_ref().expect("held above").buffer
+        }
+        let (draw_buf, strip_buf, mesh_buf) =
+            (held(&self.draw_slots), held(&self.strips), held(&self.mesh));
+        let empty = self.gpu.buffer_init("empty", &[], storage);
+        let pt_buf =
+            self.gpu
+                .buffer_init("passthrough", bytemuck::cast_slice(&passthrough), storage);
         let fp_buf = self.footprints.as_ref().map_or(&empty, |f| &f.1);
+        let dev = &self.gpu.device;
         let dummy = ToroidTextures::empty(&self.gpu);
         let tt = if clip.is_some() {
             self.toroid.as_ref().expect("synced")
@@ -700,7 +900,7 @@ impl GpuRenderer {
                 wgpu::BindGroupEntry {
                     binding: 0,
                     resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &draw_buf,
+                        buffer: draw_buf,
                         offset: 0,
                         size: wgpu::BufferSize::new(DRAW_STRIDE),
                     }),
@@ -716,6 +916,10 @@ impl GpuRenderer {
                 wgpu::BindGroupEntry {
                     binding: 3,
                     resource: pt_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: mesh_buf.as_entire_binding(),
                 },
             ],
         });
@@ -747,8 +951,12 @@ impl GpuRenderer {
         // rounding cannot differ.
         let bg = frame.background.map(|c| unorm8(c) as f64 / 255.0);
         let pipeline = self.pipeline(&frame.effects).clone();
+        if self.gpu.timestamps && self.timer.is_none() {
+            self.timer = Some(Self::timer(&self.gpu));
+        }
         let dev = &self.gpu.device;
         let mut enc = dev.create_command_encoder(&Default::default());
+        let mut draw_calls = 0;
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("terrain"),
@@ -774,6 +982,14 @@ impl GpuRenderer {
                     }),
                     stencil_ops: None,
                 }),
+                timestamp_writes: self
+                    .timer
+                    .as_ref()
+                    .map(|t| wgpu::RenderPassTimestampWrites {
+                        query_set: &t.0,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }),
                 ..Default::default()
             });
             pass.set_pipeline(&pipeline);
@@ -784,9 +1000,98 @@ impl GpuRenderer {
                 }
                 pass.set_bind_group(1, &bg1, &[(i as u64 * DRAW_STRIDE) as u32]);
                 pass.draw(range.clone(), 0..1);
+                draw_calls += 1;
             }
         }
+        if let Some((set, resolve, copy)) = &self.timer {
+            enc.resolve_query_set(set, 0..2, resolve, 0);
+            enc.copy_buffer_to_buffer(resolve, 0, copy, 0, 16);
+        }
+        // Counted before the read-back, which writes nothing.
+        let upload_bytes = self.gpu.uploaded() - uploaded;
         let rgba = textures::read_back(&self.gpu, enc, &colour, &depth, w, h)?;
+        let gpu_ms = match &self.timer {
+            Some((_, _, copy)) => Some(self.pass_ms(copy)?),
+            None => None,
+        };
+        self.costs = FrameCosts {
+            upload_bytes,
+            draw_calls,
+            gpu_ms,
+        };
         Ok(rgba)
+    }
+
+    /// The query set of two timestamps, the buffer they resolve into and
+    /// the mappable copy read after the frame.
+    fn timer(gpu: &Gpu) -> (wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer) {
+        let d = &gpu.device;
+        let set = d.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("pass time"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let buffer = |usage, label| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let resolve = buffer(U::QUERY_RESOLVE | U::COPY_SRC, "timestamps");
+        let copy = buffer(U::MAP_READ | U::COPY_DST, "timestamps read");
+        (set, resolve, copy)
+    }
+
+    /// The render pass's time (ms) from the two timestamps in `copy`, on
+    /// the queue's tick period.
+    fn pass_ms(&self, copy: &wgpu::Buffer) -> Result<f64> {
+        let slice = copy.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| ());
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::value("gpu", format!("wait for timestamps failed: {e}")))?;
+        let ticks: [u64; 2] = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| Error::value("gpu", format!("timestamps unreadable: {e}")))?;
+            let t: &[u64] = bytemuck::cast_slice(&view);
+            [t[0], t[1]]
+        };
+        copy.unmap();
+        let period = self.gpu.queue.get_timestamp_period() as f64;
+        Ok(ticks[1].wrapping_sub(ticks[0]) as f64 * period / 1e6)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_changed_words_are_written() {
+        let old = [
+            1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20,
+        ];
+        // Nothing changed: nothing to write.
+        assert!(changed_runs(&old, &old).is_empty());
+        // One word, and two words far apart, are separate runs.
+        let mut new = old;
+        new[3] = 0;
+        assert_eq!(changed_runs(&old, &new), vec![3..4]);
+        new[18] = 0;
+        assert_eq!(changed_runs(&old, &new), vec![3..4, 18..19]);
+        // Changes closer than the gap are one write.
+        let mut near = old;
+        near[2] = 0;
+        near[2 + RUN_GAP_WORDS - 1] = 0;
+        assert_eq!(changed_runs(&old, &near), vec![2..2 + RUN_GAP_WORDS]);
+        // Words past the old end are written; a shorter list writes nothing.
+        assert_eq!(changed_runs(&old[..18], &old), vec![18..20]);
+        assert!(changed_runs(&old, &old[..5]).is_empty());
+        assert_eq!(changed_runs(&[], &old[..3]), vec![0..3]);
     }
 }

@@ -58,7 +58,7 @@ fn texture_for(
 /// Writes `data` (rows of `row_texels` texels of `texel` bytes) into the
 /// rectangle at (x, y) of layer `layer`.
 fn write(gpu: &Gpu, t: &wgpu::Texture, at: [u32; 3], size: [u32; 2], data: &[u8], row_bytes: u32) {
-    gpu.queue.write_texture(
+    gpu.write_texture(
         wgpu::TexelCopyTextureInfo {
             texture: t,
             mip_level: 0,

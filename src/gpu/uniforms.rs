@@ -69,9 +69,11 @@ pub struct Draw {
 pub const MODE_PASSTHROUGH: i32 = 0;
 pub const MODE_STRIPS: i32 = 1;
 pub const MODE_FOOTPRINT: i32 = 2;
+pub const MODE_MESH: i32 = 3;
 
-/// A vertex the CPU vertex stage made (brute force and other meshes no
-/// clipmap made), read by the shader as floats at the `PT_*` offsets.
+/// A vertex the CPU vertex stage made, read by the shader as floats at the
+/// `PT_*` offsets: what a frame without grid places (an exported one) or
+/// drawn on GL is drawn from.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct PassVertex {
@@ -85,6 +87,30 @@ pub struct PassVertex {
     pub bary: [f32; 3],
     pub edge: [f32; 3],
     pub pad: f32,
+}
+
+/// A vertex of a mesh no clipmap made (brute force, ROAM, CBT, …), as a
+/// GPU renderer keeps it resident: its grid place, heights and morph
+/// weight, and the attributes that do not depend on the view. The shader
+/// makes the camera-relative position, the clip position, fog and the
+/// view vector from it each frame, in the CPU vertex stage's order, so the
+/// buffer changes only where the mesh does. Read as 32-bit words at the
+/// `MV_*` offsets.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct MeshVertex {
+    /// Base-grid column and row (`LodVertex::col`, `row`).
+    pub grid: [i32; 2],
+    /// Sub-texel offset (`LodVertex::offset`).
+    pub offset: [f32; 2],
+    /// Own height, morph target and morph weight.
+    pub z: f32,
+    pub zc: f32,
+    pub alpha: f32,
+    /// The CPU's vertex normal (zero unless lit without a normal map).
+    pub normal: [f32; 3],
+    /// The CPU's level texel coordinates (zero unless the layout has them).
+    pub uv: [f32; 2],
 }
 
 #[cfg(test)]
@@ -167,11 +193,12 @@ mod tests {
         assert_eq!(members(&m, "Draw"), draw);
     }
 
-    /// The shader's `PT_*` constants are the float offsets of the
-    /// [`PassVertex`] fields it reads, `PT` its length in floats, and its
-    /// `MODE_*` the draw modes [`Draw`] carries.
+    /// The shader's `PT_*` and `MV_*` constants are the word offsets of the
+    /// [`PassVertex`] and [`MeshVertex`] fields it reads, `PT` and `MV`
+    /// their lengths in words, and its `MODE_*` the draw modes [`Draw`]
+    /// carries.
     #[test]
-    fn passthrough_offsets_match_the_shader() {
+    fn vertex_record_offsets_match_the_shader() {
         let m = shader();
         // The literal a module-scope constant is set to.
         let literal = |name: &str| -> Literal {
@@ -194,10 +221,12 @@ mod tests {
             ("MODE_PASSTHROUGH", MODE_PASSTHROUGH),
             ("MODE_STRIPS", MODE_STRIPS),
             ("MODE_FOOTPRINT", MODE_FOOTPRINT),
+            ("MODE_MESH", MODE_MESH),
         ] {
             assert_eq!(literal(name), Literal::I32(mode), "{name}");
         }
         assert_eq!(constant("PT"), float(size_of::<PassVertex>()));
+        assert_eq!(constant("MV"), float(size_of::<MeshVertex>()));
         for (name, at) in [
             ("PT_CLIP", offset_of!(PassVertex, clip)),
             ("PT_ALBEDO", offset_of!(PassVertex, albedo)),
@@ -207,6 +236,13 @@ mod tests {
             ("PT_FOG", offset_of!(PassVertex, fog)),
             ("PT_VIEW", offset_of!(PassVertex, view)),
             ("PT_EDGE", offset_of!(PassVertex, edge)),
+            ("MV_GRID", offset_of!(MeshVertex, grid)),
+            ("MV_OFFSET", offset_of!(MeshVertex, offset)),
+            ("MV_Z", offset_of!(MeshVertex, z)),
+            ("MV_ZC", offset_of!(MeshVertex, zc)),
+            ("MV_ALPHA", offset_of!(MeshVertex, alpha)),
+            ("MV_NORMAL", offset_of!(MeshVertex, normal)),
+            ("MV_UV", offset_of!(MeshVertex, uv)),
         ] {
             assert_eq!(constant(name), float(at), "{name}");
         }

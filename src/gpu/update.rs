@@ -24,7 +24,6 @@ use crate::pyramid::PyramidLevel;
 use crate::synthesis::source::Continuation;
 use crate::synthesis::{NoiseTable, STRETCH};
 use crate::terrain::world::WorldMap;
-use wgpu::util::DeviceExt;
 
 const SHADER: &str = concat!(
     include_str!("shaders/wrap.wgsl"),
@@ -200,11 +199,7 @@ impl UpdatePass {
             wgpu::TextureFormat::Rg32Float,
             "no slopes",
         );
-        let unused = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("unused"),
-            contents: &[0; 4],
-            usage: wgpu::BufferUsages::STORAGE,
-        });
+        let unused = gpu.buffer_init("unused", &[0; 4], wgpu::BufferUsages::STORAGE);
         UpdatePass {
             fill,
             pipeline,
@@ -273,11 +268,11 @@ impl UpdatePass {
         if let Some(how) = how {
             if self.table.as_ref().is_none_or(|t| t.0 != how.seed) {
                 let t = NoiseTable::new(how.seed);
-                let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("noise table"),
-                    contents: bytemuck::cast_slice(t.values()),
-                    usage: wgpu::BufferUsages::STORAGE,
-                });
+                let buf = gpu.buffer_init(
+                    "noise table",
+                    bytemuck::cast_slice(t.values()),
+                    wgpu::BufferUsages::STORAGE,
+                );
                 self.table = Some((how.seed, buf));
             }
         }
@@ -335,11 +330,11 @@ impl UpdatePass {
                         let words = residual_words(fine, coarse, s, bx);
                         let escapes = words.len() - (bx[2] * bx[3]).div_ceil(2);
                         sent += 4 * words.len() as u64;
-                        let buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                            label: Some("residuals"),
-                            contents: bytemuck::cast_slice(&words),
-                            usage: wgpu::BufferUsages::STORAGE,
-                        });
+                        let buf = gpu.buffer_init(
+                            "residuals",
+                            bytemuck::cast_slice(&words),
+                            wgpu::BufferUsages::STORAGE,
+                        );
                         ([1, (escapes / 2) as i32, 0, 0], Some(buf))
                     }
                 };
@@ -363,11 +358,11 @@ impl UpdatePass {
                     res_box,
                     res,
                 };
-                let ub = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("update uniforms"),
-                    contents: bytemuck::bytes_of(&u),
-                    usage: wgpu::BufferUsages::UNIFORM,
-                });
+                let ub = gpu.buffer_init(
+                    "update uniforms",
+                    bytemuck::bytes_of(&u),
+                    wgpu::BufferUsages::UNIFORM,
+                );
                 let bg = d.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("update"),
                     layout: &self.layout,

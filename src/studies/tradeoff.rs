@@ -80,6 +80,36 @@ pub struct Row {
     /// Mean triangles drawn over the low-FOV views.
     #[serde(default)]
     pub triangles_low_fov: f64,
+    /// The wgpu back end's costs, measured with `--gpu`.
+    #[serde(default)]
+    pub gpu: Option<GpuCosts>,
+}
+
+/// What the same setting costs a GPU renderer: the wgpu back end, keeping
+/// its buffers and toroids resident, draws the views and the path on the
+/// adapter at hand.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct GpuCosts {
+    /// The adapter, as its driver names it.
+    pub adapter: String,
+    /// Mean bytes written to the device per frame along the path, the
+    /// first frame (a full upload) left out: uniforms, changed vertex and
+    /// index words, toroid texels.
+    pub upload_bytes: f64,
+    /// Mean draw calls per view.
+    pub draw_calls: f64,
+    /// Mean over the views of each view's median render-pass time on the
+    /// GPU's clock (ms, 3 frames); `None` where the adapter has no
+    /// timestamp queries.
+    pub ms: Option<f64>,
+}
+
+impl Row {
+    /// CPU time a GPU renderer spends on LOD per frame: the LOD update and
+    /// the mesh or index generation (ms).
+    pub fn ms_cpu_lod(&self) -> f64 {
+        self.ms_lod + self.ms_mesh
+    }
 }
 
 /// The report: rows, and the answer to "within 1/10 of brute force's time,
@@ -113,6 +143,9 @@ pub struct Options {
     pub quick: bool,
     /// The settings measured: k with k mod N = i of [`settings`].
     pub shard: Shard,
+    /// Also draw each setting with the wgpu back end on Vulkan and
+    /// report [`GpuCosts`].
+    pub gpu: bool,
 }
 
 fn variant(
@@ -342,6 +375,103 @@ fn session_for(scene: &Scene, size: [u32; 2], samples: u32) -> Result<Session> {
     Session::new(&s, &mut Passes::default())
 }
 
+/// A row's GPU figures, summed over its views and path.
+#[derive(Default)]
+struct GpuSums {
+    upload: f64,
+    upload_frames: f64,
+    draw_calls: f64,
+    ms: f64,
+    timed: bool,
+}
+
+/// The wgpu back end a `--gpu` sweep draws each setting with, or nothing.
+struct GpuSide {
+    #[cfg(feature = "gpu")]
+    r: Option<crate::gpu::GpuRenderer>,
+}
+
+impl GpuSide {
+    fn open(want: bool) -> Result<GpuSide> {
+        #[cfg(feature = "gpu")]
+        {
+            use crate::gpu::{Api, Gpu, GpuRenderer};
+            let r = match want {
+                true => Some(GpuRenderer::new(Gpu::new(Api::Vulkan)?)),
+                false => None,
+            };
+            Ok(GpuSide { r })
+        }
+        #[cfg(not(feature = "gpu"))]
+        match want {
+            true => Err(crate::error::Error::value(
+                "--gpu",
+                "this build has no GPU back end (build with the `gpu` feature)",
+            )),
+            false => Ok(GpuSide {}),
+        }
+    }
+
+    /// Three GPU frames of `cam` after the CPU's: the median pass time and
+    /// the last frame's draw calls. The CPU frames moved the clipmap
+    /// without the GPU, so its toroids are uploaded afresh first.
+    fn view(&mut self, session: &mut Session, cam: &Camera, sums: &mut GpuSums) -> Result<()> {
+        #[cfg(feature = "gpu")]
+        if let Some(r) = &mut self.r {
+            r.forget_textures();
+            let mut times = Vec::new();
+            let mut passes = Passes::default();
+            for _ in 0..3 {
+                crate::render::gpu::frame(r, session, cam, &mut passes)?;
+                times.push(r.costs().gpu_ms);
+            }
+            sums.draw_calls += r.costs().draw_calls as f64;
+            if let [Some(a), Some(b), Some(c)] = times[..] {
+                let mut t = [a, b, c];
+                t.sort_by(f64::total_cmp);
+                sums.ms += t[1];
+                sums.timed = true;
+            }
+        }
+        let _ = (session, cam, sums);
+        Ok(())
+    }
+
+    /// The path drawn on the GPU alone, from fresh toroids: the bytes
+    /// each frame after the first uploads.
+    fn path(&mut self, session: &mut Session, path: &[Camera], sums: &mut GpuSums) -> Result<()> {
+        #[cfg(feature = "gpu")]
+        if let Some(r) = &mut self.r {
+            r.forget_textures();
+            let mut passes = Passes::default();
+            for (k, c) in path.iter().enumerate() {
+                crate::render::gpu::frame(r, session, c, &mut passes)?;
+                if k > 0 {
+                    sums.upload += r.costs().upload_bytes as f64;
+                    sums.upload_frames += 1.0;
+                }
+            }
+        }
+        let _ = (session, path, sums);
+        Ok(())
+    }
+
+    /// The row's [`GpuCosts`] over `views` views, when drawn.
+    fn costs(&self, sums: &GpuSums, views: f64) -> Option<GpuCosts> {
+        #[cfg(feature = "gpu")]
+        if let Some(r) = &self.r {
+            return Some(GpuCosts {
+                adapter: r.gpu.adapter(),
+                upload_bytes: sums.upload / sums.upload_frames.max(1.0),
+                draw_calls: sums.draw_calls / views,
+                ms: sums.timed.then(|| sums.ms / views),
+            });
+        }
+        let _ = (sums, views);
+        None
+    }
+}
+
 /// Measures every setting; `tick(label)` is called after each.
 pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<Report> {
     let settings = settings(scene, opts.quick)?;
@@ -361,6 +491,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
         bf_path.push(shot(&mut probe, c, 1)?.0);
     }
     drop(probe);
+    let mut gpu = GpuSide::open(opts.gpu)?;
     let mut rows = Vec::new();
     let mine = settings
         .iter()
@@ -377,6 +508,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
         // Time, triangles and count of the low-FOV views.
         let mut low = [0.0f64; 3];
         let (mut ms, mut parts, mut tris) = (0.0, [0.0f64; 5], 0.0);
+        let mut gpu_sums = GpuSums::default();
         for (i, v) in views.iter().enumerate() {
             // A warm-up frame one step back, so incremental schemes pay
             // their steady-state update, not a rebuild.
@@ -412,6 +544,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             parts[3] += stats.pass_ms(&["raster"]);
             parts[4] += stats.pass_ms(&["shade"]);
             tris += triangles as f64;
+            gpu.view(&mut session, &v.camera, &mut gpu_sums)?;
         }
         // Popping along the path (brute-force referenced settings only).
         let mut popping = 0.0f64;
@@ -426,6 +559,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
                 prev = Some(img);
             }
         }
+        gpu.path(&mut session, &path, &mut gpu_sums)?;
         let nv = views.len() as f64;
         let mean = |kind: Option<&str>| {
             let sel: Vec<f64> = errs
@@ -460,6 +594,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             pareto: false,
             ms_low_fov: low[0] / low[2].max(1.0),
             triangles_low_fov: low[1] / low[2].max(1.0),
+            gpu: gpu.costs(&gpu_sums, nv),
         });
         tick(&format!("{} {}", st.lod, st.config));
     }
@@ -554,11 +689,11 @@ fn front_of(pts: &[(f64, f64, bool)]) -> Vec<bool> {
 /// The rows as CSV.
 pub fn csv(rows: &[Row]) -> String {
     let mut out = String::from(
-        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto,ms_low_fov,triangles_low_fov\n",
+        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto,ms_low_fov,triangles_low_fov,ms_cpu_lod,gpu_adapter,upload_bytes,draw_calls,gpu_ms\n",
     );
     for r in rows {
         out += &format!(
-            "{},\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4},{},{:.3},{:.0},{:.4},{},{},{:.3},{:.0}\n",
+            "{},\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4},{:.4},{:.4},{},{:.3},{:.0},{:.4},{},{},{:.3},{:.0},{:.3},{}\n",
             r.lod,
             r.config,
             r.ms,
@@ -577,10 +712,28 @@ pub fn csv(rows: &[Row]) -> String {
             r.reference,
             r.pareto,
             r.ms_low_fov,
-            r.triangles_low_fov
+            r.triangles_low_fov,
+            r.ms_cpu_lod(),
+            gpu_columns(r.gpu.as_ref()),
         );
     }
     out
+}
+
+/// The CSV's GPU columns: adapter, upload bytes, draw calls and pass ms,
+/// "no timestamp queries" where the adapter could not time the pass, and
+/// empty without `--gpu`.
+fn gpu_columns(g: Option<&GpuCosts>) -> String {
+    match g {
+        None => ",,,".into(),
+        Some(g) => format!(
+            "\"{}\",{:.0},{:.1},{}",
+            g.adapter,
+            g.upload_bytes,
+            g.draw_calls,
+            g.ms.map_or("no timestamp queries".into(), |m| format!("{m:.3}"))
+        ),
+    }
 }
 
 /// Error against time, one series per scheme, the Pareto front marked.
@@ -613,6 +766,82 @@ pub fn chart_low_fov(report: &Report) -> crate::studies::report::chart::Chart {
         "ms per low-FOV frame (log)",
         "low-FOV RMSE vs reference (8-bit)",
     )
+}
+
+/// RMSE against one cost per row (`cost`, `None` where the row lacks it),
+/// with the front of those two among brute-force-referenced rows; `None`
+/// when no row has the cost.
+fn chart_cost(
+    report: &Report,
+    cost: impl Fn(&Row) -> Option<f64>,
+    title: &str,
+    x_label: &str,
+) -> Option<crate::studies::report::chart::Chart> {
+    let rows: Vec<Row> = report
+        .rows
+        .iter()
+        .filter(|r| cost(r).is_some_and(|c| c > 0.0))
+        .cloned()
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let pts: Vec<(f64, f64, bool)> = rows
+        .iter()
+        .map(|r| (cost(r).unwrap_or(0.0), r.rmse, r.reference == "brute-force"))
+        .collect();
+    let pareto = front_of(&pts);
+    let sub = Report {
+        rows,
+        ..report.clone()
+    };
+    Some(chart_of(
+        &sub,
+        |r| (cost(r).unwrap_or(0.0), r.rmse),
+        &pareto,
+        format!("{}: {title}", report.title),
+        x_label,
+        "RMSE vs reference (8-bit)",
+    ))
+}
+
+/// The per-cost charts, by file stem: RMSE against CPU LOD time, against
+/// the bytes uploaded per frame, and against GPU time (those two with
+/// `--gpu`, the last where the adapter has timestamp queries).
+pub fn cost_charts(report: &Report) -> Vec<(&'static str, crate::studies::report::chart::Chart)> {
+    let charts = [
+        (
+            "tradeoff-cpu-lod",
+            chart_cost(
+                report,
+                |r| Some(r.ms_cpu_lod()),
+                "CPU LOD work",
+                "ms of LOD update and mesh generation per frame (log)",
+            ),
+        ),
+        (
+            "tradeoff-upload",
+            chart_cost(
+                report,
+                |r| r.gpu.as_ref().map(|g| g.upload_bytes),
+                "upload",
+                "bytes uploaded per frame along the path (log)",
+            ),
+        ),
+        (
+            "tradeoff-gpu",
+            chart_cost(
+                report,
+                |r| r.gpu.as_ref().and_then(|g| g.ms),
+                "GPU time",
+                "render-pass ms on the GPU's clock (log)",
+            ),
+        ),
+    ];
+    charts
+        .into_iter()
+        .filter_map(|(stem, c)| c.map(|c| (stem, c)))
+        .collect()
 }
 
 fn chart_of(
@@ -658,8 +887,9 @@ fn chart_of(
     }
 }
 
-/// Writes `tradeoff.csv`, `.svg` and `.png`, and the low-FOV chart
-/// `tradeoff-low-fov.svg` and `.png`, into `dir` (each atomically).
+/// Writes `tradeoff.csv`, `.svg` and `.png`, the low-FOV chart
+/// `tradeoff-low-fov.svg` and `.png`, and the [`cost_charts`], into `dir`
+/// (each atomically).
 pub fn write(report: &Report, dir: &std::path::Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
     let c = chart(report);
@@ -669,6 +899,10 @@ pub fn write(report: &Report, dir: &std::path::Path) -> Result<()> {
     let low = chart_low_fov(report);
     crate::error::write_atomic(&dir.join("tradeoff-low-fov.svg"), low.svg().as_bytes())?;
     crate::error::write_atomic(&dir.join("tradeoff-low-fov.png"), &low.png()?)?;
+    for (stem, c) in cost_charts(report) {
+        crate::error::write_atomic(&dir.join(format!("{stem}.svg")), c.svg().as_bytes())?;
+        crate::error::write_atomic(&dir.join(format!("{stem}.png")), &c.png()?)?;
+    }
     Ok(())
 }
 
@@ -697,6 +931,7 @@ mod tests {
             pareto: false,
             ms_low_fov: ms,
             triangles_low_fov: 0.0,
+            gpu: None,
         }
     }
 

@@ -69,11 +69,13 @@ override WIREFRAME: bool = false;
 @group(1) @binding(1) var<storage, read> strips: array<u32>;
 @group(1) @binding(2) var<storage, read> footprints: array<vec2<i32>>;
 @group(1) @binding(3) var<storage, read> passthrough: array<f32>;
+@group(1) @binding(4) var<storage, read> mesh: array<u32>;
 
 // What a draw's vertices are (D.level.w; gpu::uniforms::MODE_*).
 const MODE_PASSTHROUGH: i32 = 0;
 const MODE_STRIPS: i32 = 1;
 const MODE_FOOTPRINT: i32 = 2;
+const MODE_MESH: i32 = 3;
 
 // Record of a passthrough vertex (gpu::uniforms::PassVertex): float
 // offsets of the fields read here, and the record's length.
@@ -86,6 +88,17 @@ const PT_FOG: u32 = 13u;
 const PT_VIEW: u32 = 14u;
 const PT_EDGE: u32 = 20u;
 const PT: u32 = 24u;
+
+// Record of a resident mesh vertex (gpu::uniforms::MeshVertex): word
+// offsets of the fields read here, and the record's length.
+const MV_GRID: u32 = 0u;
+const MV_OFFSET: u32 = 2u;
+const MV_Z: u32 = 4u;
+const MV_ZC: u32 = 5u;
+const MV_ALPHA: u32 = 6u;
+const MV_NORMAL: u32 = 7u;
+const MV_UV: u32 = 10u;
+const MV: u32 = 12u;
 
 struct VOut {
     @builtin(position) pos: vec4<f32>,
@@ -219,9 +232,9 @@ fn local_coords(vid: u32) -> vec2<i32> {
     let n = D.level.z;
     var c: vec2<i32>;
     if (D.level.w == MODE_STRIPS) {
+        // Window-local indices (the CPU took the toroid origin off).
         let idx = strips[vid];
-        let t = vec2<i32>(i32(idx % u32(n)), i32(idx / u32(n)));
-        c = vec2<i32>(wrap(t.x - D.origin.z, n), wrap(t.y - D.origin.w, n));
+        c = vec2<i32>(i32(idx % u32(n)), i32(idx / u32(n)));
     } else {
         c = footprints[vid] + D.rel.zw;
     }
@@ -304,6 +317,36 @@ fn pt(vid: u32, k: u32) -> f32 {
     return passthrough[vid * PT + k];
 }
 
+fn mv(vid: u32, k: u32) -> f32 {
+    return bitcast<f32>(mesh[vid * MV + k]);
+}
+
+// A resident mesh vertex's camera-relative position (VertexUniforms::position):
+// the grid place less the floating origin (D.origin.xy) in integers, then
+// f32, the offset, the cell; the height morphed as morph::blend does.
+fn mesh_position(vid: u32) -> vec3<f32> {
+    let col = bitcast<i32>(mesh[vid * MV + MV_GRID]);
+    let row = bitcast<i32>(mesh[vid * MV + MV_GRID + 1u]);
+    let z = mv(vid, MV_Z);
+    let zc = mv(vid, MV_ZC);
+    let alpha = mv(vid, MV_ALPHA);
+    let keep = 1.0 - alpha;
+    let zm = clamp(keep * z + alpha * zc, min(z, zc), max(z, zc));
+    return vec3<f32>(
+        (f32(col - D.origin.x) + mv(vid, MV_OFFSET)) * G.cell.x,
+        (f32(D.origin.y - row) - mv(vid, MV_OFFSET + 1u)) * G.cell.y,
+        zm * G.cell.z,
+    );
+}
+
+// The camera-relative position of any vertex a draw pulls.
+fn position_of(vid: u32) -> vec3<f32> {
+    if (D.level.w == MODE_MESH) {
+        return mesh_position(vid);
+    }
+    return morphed(vid).p;
+}
+
 @vertex
 fn vs_main(@builtin(vertex_index) vid: u32) -> VOut {
     var o: VOut;
@@ -312,8 +355,8 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VOut {
     o.bary = vec3<f32>(0.0);
     o.bary[corner] = 1.0;
     if (D.level.w == MODE_PASSTHROUGH) {
-        // Brute force and other CPU-made meshes: the CPU vertex stage's
-        // output, passed through.
+        // Frames without grid places (exports), and every CPU-made mesh
+        // on GL: the CPU vertex stage's output, passed through.
         o.pos = vec4<f32>(
             pt(vid, PT_CLIP), pt(vid, PT_CLIP + 1u), pt(vid, PT_CLIP + 2u), pt(vid, PT_CLIP + 3u)
         );
@@ -326,37 +369,47 @@ fn vs_main(@builtin(vertex_index) vid: u32) -> VOut {
         o.edge = vec3<f32>(pt(vid, PT_EDGE), pt(vid, PT_EDGE + 1u), pt(vid, PT_EDGE + 2u));
         return o;
     }
-    let m = morphed(vid);
-    let p = m.p;
+    var p: vec3<f32>;
+    if (D.level.w == MODE_MESH) {
+        // Meshes no clipmap made: the view-independent attributes come
+        // from the CPU, as a renderer would keep them resident.
+        p = mesh_position(vid);
+        o.uv = vec2<f32>(mv(vid, MV_UV), mv(vid, MV_UV + 1u));
+        o.alpha = mv(vid, MV_ALPHA);
+        o.normal = vec3<f32>(mv(vid, MV_NORMAL), mv(vid, MV_NORMAL + 1u), mv(vid, MV_NORMAL + 2u));
+    } else {
+        let m = morphed(vid);
+        p = m.p;
+        o.uv = vec2<f32>(f32(m.local.x), f32(m.local.y));
+        o.alpha = m.alpha;
+        if (VERTEX_NORMALS) {
+            let l = D.level.x;
+            let x = D.origin.x + m.local.x;
+            let y = D.origin.y + m.local.y;
+            var gr = gradient(x, y, l);
+            if (D.flags.y != 0 && m.alpha > 0.0) {
+                let c = coarse_gradient(x, y, l + 1);
+                let k = 1.0 - m.alpha;
+                gr = vec2<f32>(k * gr.x + m.alpha * c.x, k * gr.y + m.alpha * c.y);
+            }
+            // 1.0 from a uniform: with a literal, the compiler turns 1 / sqrt(d)
+            // into an inverse square root, whose bits differ from the CPU's.
+            o.normal = normalize3(vec3<f32>(-gr.x, -gr.y, G.eye.w));
+        }
+    }
     o.pos = clip_of(p);
     o.albedo = height_albedo((p.z - G.ramp.x) / G.ramp.y);
-    o.uv = vec2<f32>(f32(m.local.x), f32(m.local.y));
-    o.alpha = m.alpha;
     let view = vec3<f32>(p.x - G.eye.x, p.y - G.eye.y, p.z - G.eye.z);
     o.view = view;
     if (FOG) {
         let d = sqrt(dot3(view, view));
         o.fog = fog_exp2(-(G.cell.w * d));
     }
-    if (VERTEX_NORMALS) {
-        let l = D.level.x;
-        let x = D.origin.x + m.local.x;
-        let y = D.origin.y + m.local.y;
-        var gr = gradient(x, y, l);
-        if (D.flags.y != 0 && m.alpha > 0.0) {
-            let c = coarse_gradient(x, y, l + 1);
-            let k = 1.0 - m.alpha;
-            gr = vec2<f32>(k * gr.x + m.alpha * c.x, k * gr.y + m.alpha * c.y);
-        }
-        // 1.0 from a uniform: with a literal, the compiler turns 1 / sqrt(d)
-        // into an inverse square root, whose bits differ from the CPU's.
-        o.normal = normalize3(vec3<f32>(-gr.x, -gr.y, G.eye.w));
-    }
     if (WIREFRAME) {
         let first = vid - corner;
-        let c0 = clip_of(morphed(first).p);
-        let c1 = clip_of(morphed(first + 1u).p);
-        let c2 = clip_of(morphed(first + 2u).p);
+        let c0 = clip_of(position_of(first));
+        let c1 = clip_of(position_of(first + 1u));
+        let c2 = clip_of(position_of(first + 2u));
         o.edge = edge_thresholds(c0, c1, c2);
     }
     return o;
