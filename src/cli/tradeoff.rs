@@ -113,14 +113,16 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         );
         for r in &report.rows {
             let Some(g) = &r.gpu else { continue };
+            let f = |v: Option<f64>, d: usize| v.map_or("-".into(), |v| format!("{v:.d$}"));
             println!(
-                "{:<12} {:<26} {:>10.3} {:>14.0} {:>7.1} {:>9}",
+                "{:<12} {:<26} {:>10.3} {:>14} {:>7} {:>9}  {}",
                 r.lod,
                 r.config,
                 r.ms_cpu_lod(),
-                g.upload_bytes,
-                g.draw_calls,
-                g.ms.map_or("no timestamp queries".into(), |m| format!("{m:.3}"))
+                f(g.upload_bytes, 0),
+                f(g.draw_calls, 1),
+                f(g.ms, 3),
+                g.note.as_deref().unwrap_or("")
             );
         }
     }

@@ -180,12 +180,26 @@ impl Resident {
         words: &[u32],
         label: &str,
         usage: wgpu::BufferUsages,
-    ) {
-        let fits = slot
-            .as_ref()
-            .is_some_and(|r| r.buffer.size() >= 4 * words.len().max(4) as u64);
+    ) -> Result<()> {
+        let need = 4 * words.len().max(4) as u64;
+        // Uniform slots are bound 256 bytes at a time; storage is bound whole.
+        let limits = gpu.device.limits();
+        let limit = match usage.contains(wgpu::BufferUsages::UNIFORM) {
+            true => limits.max_buffer_size,
+            false => limits.max_storage_buffer_binding_size,
+        };
+        if need > limit {
+            return Err(Error::value(
+                "gpu",
+                format!(
+                    "{label}: {need} bytes exceed {}'s binding limit of {limit}",
+                    gpu.adapter()
+                ),
+            ));
+        }
+        let fits = slot.as_ref().is_some_and(|r| r.buffer.size() >= need);
         if !fits {
-            let size = 4 * words.len().max(4).next_power_of_two() as u64;
+            let size = need.next_power_of_two().min(limit);
             let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size,
@@ -204,6 +218,7 @@ impl Resident {
         }
         r.held.clear();
         r.held.extend_from_slice(words);
+        Ok(())
     }
 }
 
@@ -836,16 +851,27 @@ impl GpuRenderer {
             words,
             "draws",
             wgpu::BufferUsages::UNIFORM,
-        );
-        Resident::hold(gpu, &mut self.strips, &strips, "strips", storage);
+        )?;
+        Resident::hold(gpu, &mut self.strips, &strips, "strips", storage)?;
         let words: &[u32] = bytemuck::cast_slice(&mesh);
-        Resident::hold(gpu, &mut self.mesh, words, "mesh", storage);
+        Resident::hold(gpu, &mut self.mesh, words, "mesh", storage)?;
         fn held(r: &Option<Resident>) -> &wgpu::Buffer {
             &r.as_ref().expect("held above").buffer
         }
         let (draw_buf, strip_buf, mesh_buf) =
             (held(&self.draw_slots), held(&self.strips), held(&self.mesh));
         let empty = self.gpu.buffer_init("empty", &[], storage);
+        let pt_bytes = std::mem::size_of_val(passthrough.as_slice()) as u64;
+        let limit = self.gpu.device.limits().max_storage_buffer_binding_size;
+        if pt_bytes > limit {
+            return Err(Error::value(
+                "gpu",
+                format!(
+                    "passthrough: {pt_bytes} bytes exceed {}'s binding limit of {limit}",
+                    self.gpu.adapter()
+                ),
+            ));
+        }
         let pt_buf =
             self.gpu
                 .buffer_init("passthrough", bytemuck::cast_slice(&passthrough), storage);

@@ -95,13 +95,16 @@ pub struct GpuCosts {
     /// Mean bytes written to the device per frame along the path, the
     /// first frame (a full upload) left out: uniforms, changed vertex and
     /// index words, toroid texels.
-    pub upload_bytes: f64,
+    pub upload_bytes: Option<f64>,
     /// Mean draw calls per view.
-    pub draw_calls: f64,
+    pub draw_calls: Option<f64>,
     /// Mean over the views of each view's median render-pass time on the
-    /// GPU's clock (ms, 3 frames); `None` where the adapter has no
-    /// timestamp queries.
+    /// GPU's clock (ms, 3 frames).
     pub ms: Option<f64>,
+    /// Why a figure is missing: the adapter has no timestamp queries, or
+    /// what stopped the row's GPU frames (a mesh over the adapter's
+    /// binding limit).
+    pub note: Option<String>,
 }
 
 impl Row {
@@ -383,6 +386,8 @@ struct GpuSums {
     draw_calls: f64,
     ms: f64,
     timed: bool,
+    /// What stopped the row's GPU frames.
+    failed: Option<String>,
 }
 
 /// The wgpu back end a `--gpu` sweep draws each setting with, or nothing.
@@ -417,7 +422,7 @@ impl GpuSide {
     /// without the GPU, so its toroids are uploaded afresh first.
     fn view(&mut self, session: &mut Session, cam: &Camera, sums: &mut GpuSums) -> Result<()> {
         #[cfg(feature = "gpu")]
-        if let Some(r) = &mut self.r {
+        if let (Some(r), None) = (&mut self.r, &sums.failed) {
             r.forget_textures();
             let mut times = Vec::new();
             let mut passes = Passes::default();
@@ -441,7 +446,7 @@ impl GpuSide {
     /// each frame after the first uploads.
     fn path(&mut self, session: &mut Session, path: &[Camera], sums: &mut GpuSums) -> Result<()> {
         #[cfg(feature = "gpu")]
-        if let Some(r) = &mut self.r {
+        if let (Some(r), None) = (&mut self.r, &sums.failed) {
             r.forget_textures();
             let mut passes = Passes::default();
             for (k, c) in path.iter().enumerate() {
@@ -460,11 +465,17 @@ impl GpuSide {
     fn costs(&self, sums: &GpuSums, views: f64) -> Option<GpuCosts> {
         #[cfg(feature = "gpu")]
         if let Some(r) = &self.r {
+            let ok = sums.failed.is_none();
             return Some(GpuCosts {
                 adapter: r.gpu.adapter(),
-                upload_bytes: sums.upload / sums.upload_frames.max(1.0),
-                draw_calls: sums.draw_calls / views,
-                ms: sums.timed.then(|| sums.ms / views),
+                upload_bytes: ok.then(|| sums.upload / sums.upload_frames.max(1.0)),
+                draw_calls: ok.then(|| sums.draw_calls / views),
+                ms: (ok && sums.timed).then(|| sums.ms / views),
+                note: match &sums.failed {
+                    Some(e) => Some(e.clone()),
+                    None if !sums.timed => Some("no timestamp queries".into()),
+                    None => None,
+                },
             });
         }
         let _ = (sums, views);
@@ -544,7 +555,9 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             parts[3] += stats.pass_ms(&["raster"]);
             parts[4] += stats.pass_ms(&["shade"]);
             tris += triangles as f64;
-            gpu.view(&mut session, &v.camera, &mut gpu_sums)?;
+            if let Err(e) = gpu.view(&mut session, &v.camera, &mut gpu_sums) {
+                gpu_sums.failed = Some(e.to_string());
+            }
         }
         // Popping along the path (brute-force referenced settings only).
         let mut popping = 0.0f64;
@@ -559,7 +572,9 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
                 prev = Some(img);
             }
         }
-        gpu.path(&mut session, &path, &mut gpu_sums)?;
+        if let Err(e) = gpu.path(&mut session, &path, &mut gpu_sums) {
+            gpu_sums.failed = Some(e.to_string());
+        }
         let nv = views.len() as f64;
         let mean = |kind: Option<&str>| {
             let sel: Vec<f64> = errs
@@ -689,7 +704,7 @@ fn front_of(pts: &[(f64, f64, bool)]) -> Vec<bool> {
 /// The rows as CSV.
 pub fn csv(rows: &[Row]) -> String {
     let mut out = String::from(
-        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto,ms_low_fov,triangles_low_fov,ms_cpu_lod,gpu_adapter,upload_bytes,draw_calls,gpu_ms\n",
+        "lod,config,ms,ms_lod,ms_mesh,ms_vertex,ms_raster,ms_shade,rmse,rmse_wide,rmse_low_fov,max_abs,depth_m,triangles,popping,reference,pareto,ms_low_fov,triangles_low_fov,ms_cpu_lod,gpu_adapter,upload_bytes,draw_calls,gpu_ms,gpu_note\n",
     );
     for r in rows {
         out += &format!(
@@ -720,18 +735,19 @@ pub fn csv(rows: &[Row]) -> String {
     out
 }
 
-/// The CSV's GPU columns: adapter, upload bytes, draw calls and pass ms,
-/// "no timestamp queries" where the adapter could not time the pass, and
-/// empty without `--gpu`.
+/// The CSV's GPU columns: adapter, upload bytes, draw calls, pass ms and
+/// the note saying why a figure is missing; empty without `--gpu`.
 fn gpu_columns(g: Option<&GpuCosts>) -> String {
+    let f = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
     match g {
-        None => ",,,".into(),
+        None => ",,,,".into(),
         Some(g) => format!(
-            "\"{}\",{:.0},{:.1},{}",
+            "\"{}\",{},{},{},\"{}\"",
             g.adapter,
-            g.upload_bytes,
-            g.draw_calls,
-            g.ms.map_or("no timestamp queries".into(), |m| format!("{m:.3}"))
+            f(g.upload_bytes, 0),
+            f(g.draw_calls, 1),
+            f(g.ms, 3),
+            g.note.as_deref().unwrap_or("").replace('"', "'")
         ),
     }
 }
@@ -823,7 +839,7 @@ pub fn cost_charts(report: &Report) -> Vec<(&'static str, crate::studies::report
             "tradeoff-upload",
             chart_cost(
                 report,
-                |r| r.gpu.as_ref().map(|g| g.upload_bytes),
+                |r| r.gpu.as_ref().and_then(|g| g.upload_bytes),
                 "upload",
                 "bytes uploaded per frame along the path (log)",
             ),
