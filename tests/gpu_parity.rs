@@ -860,7 +860,8 @@ fn every_cpu_made_mesh_matches_from_resident_vertices() {
 /// along a path uploads at least its dirty texels (4 bytes each, with
 /// their slopes' 8 under lighting) and draws one call per level with
 /// strips, more with footprints; held still it sends exactly what the
-/// still brute-force frame sent. The pass time is `Some` exactly when the
+/// still brute-force frame sent, and from fresh toroids that plus each
+/// texel's bytes. The pass time is `Some` exactly when the
 /// adapter has timestamp queries.
 #[test]
 fn frame_costs_count_what_the_back_end_writes() {
@@ -930,5 +931,16 @@ fn frame_costs_count_what_the_back_end_writes() {
         terraclip::render::gpu::frame(&mut r, &mut s, &last, &mut passes).unwrap();
         assert_eq!(r.costs().upload_bytes, costs[2].upload_bytes, "{name}");
         assert_eq!(r.texels_uploaded(), 0, "{name}");
+        // Still, from fresh toroids: exactly those bytes and every texel,
+        // its height (4 bytes) and its slope (8) under lighting.
+        r.forget_textures();
+        let (frame, _, _) =
+            terraclip::render::gpu::frame(&mut r, &mut s, &last, &mut passes).unwrap();
+        let per_texel = if frame.effects.lit() { 12 } else { 4 };
+        assert_eq!(
+            r.costs().upload_bytes - costs[2].upload_bytes,
+            r.texels_uploaded() * per_texel,
+            "{name}"
+        );
     }
 }
