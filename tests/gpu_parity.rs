@@ -944,3 +944,39 @@ fn frame_costs_count_what_the_back_end_writes() {
         );
     }
 }
+
+/// `fly --gpu`: every frame drawn by the back end too, from a session of
+/// its own. A part of the flight brings the GPU's session up to its first
+/// frame and draws the frame before it, so each frame it reports costs
+/// exactly what the whole flight's same frame did: the same bytes and the
+/// same draw calls.
+#[test]
+fn a_flights_gpu_costs_are_the_same_whole_or_in_parts() {
+    use terraclip::studies::fly;
+    use terraclip::studies::shard::Shard;
+    if renderer().is_none() {
+        return;
+    }
+    let scene = path_scene("default");
+    let run = |shard: &str| {
+        let sh = Shard::parse(shard).unwrap();
+        fly::fly_with(&scene, (6, 0), 30.0, false, sh, true, |_, _| Ok(())).unwrap()
+    };
+    let whole = run("0/1");
+    let part = run("1/2");
+    let costs = |r: &fly::FlyReport| -> Vec<(usize, u64, u64)> {
+        r.frames
+            .iter()
+            .map(|f| {
+                let g = f.gpu.expect("a GPU frame");
+                (f.frame, g.upload_bytes, g.draw_calls)
+            })
+            .collect()
+    };
+    eprintln!("whole: {:?}\npart 1/2: {:?}", costs(&whole), costs(&part));
+    assert_eq!(costs(&part), costs(&whole)[3..].to_vec());
+    // The first frame uploads every level; the later ones their changes.
+    let c = costs(&whole);
+    assert!(c[1..].iter().all(|f| f.1 < c[0].1), "{c:?}");
+    assert!(whole.mean_upload_bytes.is_some());
+}

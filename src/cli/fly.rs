@@ -35,6 +35,10 @@ pub struct Args {
     /// --dir` joins the parts' JSON and draws the charts).
     #[arg(long, value_parser = Shard::parse, default_value = "0/1", allow_hyphen_values = true)]
     pub shard: Shard,
+    /// Also draw every frame with the wgpu back end (Vulkan) and report
+    /// each frame's upload bytes, draw calls and GPU time.
+    #[arg(long)]
+    pub gpu: bool,
     #[arg(long)]
     pub json: bool,
 }
@@ -65,7 +69,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let bar = progress(a.shard.run_of(a.frames + a.still).len(), "fly");
     let mut kept = Vec::new();
     let flight = (a.frames, a.still);
-    let report = fly::fly(&s, flight, a.step, !a.no_popping, a.shard, |i, img| {
+    let popping = !a.no_popping;
+    let report = fly::fly_with(&s, flight, a.step, popping, a.shard, a.gpu, |i, img| {
         bar.inc(1);
         if let Some(dir) = &a.out {
             write_atomic(&dir.join(format!("frame_{i:04}.png")), &img.png()?)?;
@@ -85,12 +90,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     if a.json {
         let of = format!(
-            "{} --frames {} --still {} --step {} --no-popping {}",
+            "{} --frames {} --still {} --step {} --no-popping {} --gpu {}",
             a.args.describe(&a.scene),
             a.frames,
             a.still,
             a.step,
-            a.no_popping
+            a.no_popping,
+            a.gpu
         );
         let mut v = shard::tag(serde_json::to_value(&report)?, "fly", a.shard, &of);
         v["rusage"] = serde_json::to_value(Rusage::since(&start))?;
@@ -104,6 +110,24 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             report.texels_updated,
             report.popping_max
         );
+        if let Some(u) = report.mean_upload_bytes {
+            let ms: Vec<f64> = report
+                .frames
+                .iter()
+                .filter(|f| f.frame > 0)
+                .filter_map(|f| f.gpu.and_then(|g| g.ms))
+                .collect();
+            println!(
+                "on the GPU: {u:.0} bytes uploaded a frame after the first, {}",
+                match ms.len() {
+                    0 => "no timestamp queries".to_string(),
+                    n => format!(
+                        "{:.3} ms a frame on its clock",
+                        ms.iter().sum::<f64>() / n as f64
+                    ),
+                }
+            );
+        }
         if let Some(b) = &report.update_budget {
             println!(
                 "decoding feeds {:.0} level-0 texels a frame in the whole frame, {:.1} in 10 % of it                  ({:.0} samples/ms, {:.0} samples a texel, {:.1} ms frames{})",

@@ -7,6 +7,7 @@ use crate::frame::stats::Passes;
 use crate::render::{Image, RenderOptions, Session};
 use crate::scene::{LodScheme, Scene};
 use crate::shard::Shard;
+use crate::studies::gpu_side::{FrameGpu, GpuSide};
 use crate::studies::metrics;
 use serde::{Deserialize, Serialize};
 
@@ -41,6 +42,10 @@ pub struct FlyFrame {
     /// Against the previous frame (metrics::popping); 0 for the first
     /// frame, for brute force itself and with popping off.
     pub popping: f64,
+    /// With `--gpu`: what the wgpu back end, drawing the same flight with
+    /// its buffers and toroids resident, paid for the frame.
+    #[serde(default)]
+    pub gpu: Option<FrameGpu>,
 }
 
 /// A fly-through: per-frame costs and popping along a straight path.
@@ -63,6 +68,9 @@ pub struct FlyReport {
     /// pack or a lazy pyramid that decoded while moving).
     #[serde(default)]
     pub update_budget: Option<UpdateBudget>,
+    /// With `--gpu`: mean bytes uploaded per frame after the first.
+    #[serde(default)]
+    pub mean_upload_bytes: Option<f64>,
 }
 
 /// The fastest flight the decoder can feed, from the flight's own figures
@@ -133,14 +141,34 @@ fn update_budget(frames: &[FlyFrame]) -> Option<UpdateBudget> {
 /// unreported, for its popping.
 pub fn fly(
     scene: &Scene,
+    flight: (usize, usize),
+    step: f64,
+    popping: bool,
+    shard: Shard,
+    each: impl FnMut(usize, &Image) -> Result<()>,
+) -> Result<FlyReport> {
+    fly_with(scene, flight, step, popping, shard, false, each)
+}
+
+/// [`fly`], and with `gpu` each frame drawn by the wgpu back end too (a
+/// session of its own, so its toroids follow every update), its costs in
+/// [`FlyFrame::gpu`].
+pub fn fly_with(
+    scene: &Scene,
     (frames, still): (usize, usize),
     step: f64,
     popping: bool,
     shard: Shard,
+    gpu: bool,
     mut each: impl FnMut(usize, &Image) -> Result<()>,
 ) -> Result<FlyReport> {
     let opts = RenderOptions::default();
     let mut session = Session::new(scene, &mut Passes::default())?;
+    let mut gpu = GpuSide::open(gpu)?;
+    let mut gpu_session = match gpu.adapter() {
+        Some(_) => Some(Session::new(scene, &mut Passes::default())?),
+        None => None,
+    };
     let mut brute = if popping && scene.lod.scheme != LodScheme::BruteForce {
         Some(Session::new(
             &scene.with_lod("brute-force")?,
@@ -159,9 +187,16 @@ pub fn fly(
     for (i, cam) in cams.iter().enumerate().take(mine.end) {
         if i + 1 < mine.start {
             session.update(cam, &mut Passes::default());
+            if let Some(g) = &mut gpu_session {
+                g.update(cam, &mut Passes::default());
+            }
             continue;
         }
         let (img, stats) = session.render(cam, &opts, Passes::default())?;
+        let frame_gpu = match &mut gpu_session {
+            Some(g) => gpu.frame(g, cam)?,
+            None => None,
+        };
         let reference = match &mut brute {
             Some(b) => Some(b.render(cam, &opts, Passes::default())?.0),
             None => None,
@@ -196,6 +231,7 @@ pub fn fly(
             pyramid_samples: stats.lazy.as_ref().map_or(0, |z| z.samples_this_frame),
             pyramid_tiles: stats.lazy.as_ref().map_or(0, |z| z.tiles_this_frame),
             popping: pop,
+            gpu: frame_gpu,
         });
         each(i, &img)?;
         prev = Some((img, reference));
@@ -221,7 +257,13 @@ fn summary(
         .iter()
         .try_fold(0u64, |a, f| a.checked_add(f.texels_updated))
         .ok_or("texels rewritten past the largest whole number")?;
+    let uploads: Vec<f64> = later
+        .iter()
+        .filter_map(|f| f.gpu.map(|g| g.upload_bytes as f64))
+        .collect();
     Ok(FlyReport {
+        mean_upload_bytes: (!uploads.is_empty())
+            .then(|| uploads.iter().sum::<f64>() / uploads.len() as f64),
         update_budget: update_budget(&frames),
         lod,
         mean_update_ms: later.iter().map(|f| f.update_ms).sum::<f64>() / later.len().max(1) as f64,
@@ -342,6 +384,7 @@ mod tests {
                 pyramid_tiles: 0,
                 texels_moved: 0.0,
                 popping: 0.0,
+                gpu: None,
             })
             .collect();
         summary("clipmap".into(), frames, 0).unwrap()
@@ -368,6 +411,7 @@ mod tests {
                 pyramid_tiles: 0,
                 texels_moved: moved,
                 popping: 0.0,
+                gpu: None,
             };
         let mut run = vec![
             f(0, 900.0, 800.0, 9_000_000, 0.0, 10),

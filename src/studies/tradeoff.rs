@@ -16,6 +16,7 @@ use crate::pyramid::Filter;
 use crate::render::{Image, RenderOptions, RenderStats, Session};
 use crate::scene::{Effect, LodScheme, Scene};
 use crate::shard::Shard;
+use crate::studies::gpu_side::GpuSide;
 use crate::studies::metrics;
 use crate::studies::views::{self, NamedView};
 use serde::{Deserialize, Serialize};
@@ -390,97 +391,72 @@ struct GpuSums {
     failed: Option<String>,
 }
 
-/// The wgpu back end a `--gpu` sweep draws each setting with, or nothing.
-struct GpuSide {
-    #[cfg(feature = "gpu")]
-    r: Option<crate::gpu::GpuRenderer>,
+/// Three GPU frames of `cam` after the CPU's: the median pass time and
+/// the last frame's draw calls. The CPU frames moved the clipmap without
+/// the GPU, so its toroids are uploaded afresh first.
+fn gpu_view(
+    gpu: &mut GpuSide,
+    session: &mut Session,
+    cam: &Camera,
+    sums: &mut GpuSums,
+) -> Result<()> {
+    if sums.failed.is_some() {
+        return Ok(());
+    }
+    gpu.forget();
+    let mut frames = Vec::new();
+    for _ in 0..3 {
+        match gpu.frame(session, cam)? {
+            Some(f) => frames.push(f),
+            None => return Ok(()),
+        }
+    }
+    sums.draw_calls += frames[2].draw_calls as f64;
+    let mut t: Vec<f64> = frames.iter().filter_map(|f| f.ms).collect();
+    if t.len() == 3 {
+        t.sort_by(f64::total_cmp);
+        sums.ms += t[1];
+        sums.timed = true;
+    }
+    Ok(())
 }
 
-impl GpuSide {
-    fn open(want: bool) -> Result<GpuSide> {
-        #[cfg(feature = "gpu")]
-        {
-            use crate::gpu::{Api, Gpu, GpuRenderer};
-            let r = match want {
-                true => Some(GpuRenderer::new(Gpu::new(Api::Vulkan)?)),
-                false => None,
-            };
-            Ok(GpuSide { r })
-        }
-        #[cfg(not(feature = "gpu"))]
-        match want {
-            true => Err(crate::error::Error::value(
-                "--gpu",
-                "this build has no GPU back end (build with the `gpu` feature)",
-            )),
-            false => Ok(GpuSide {}),
+/// The path drawn on the GPU alone, from fresh toroids: the bytes each
+/// frame after the first uploads.
+fn gpu_path(
+    gpu: &mut GpuSide,
+    session: &mut Session,
+    path: &[Camera],
+    sums: &mut GpuSums,
+) -> Result<()> {
+    if sums.failed.is_some() {
+        return Ok(());
+    }
+    gpu.forget();
+    for (k, c) in path.iter().enumerate() {
+        if let (Some(f), true) = (gpu.frame(session, c)?, k > 0) {
+            sums.upload += f.upload_bytes as f64;
+            sums.upload_frames += 1.0;
         }
     }
+    Ok(())
+}
 
-    /// Three GPU frames of `cam` after the CPU's: the median pass time and
-    /// the last frame's draw calls. The CPU frames moved the clipmap
-    /// without the GPU, so its toroids are uploaded afresh first.
-    fn view(&mut self, session: &mut Session, cam: &Camera, sums: &mut GpuSums) -> Result<()> {
-        #[cfg(feature = "gpu")]
-        if let (Some(r), None) = (&mut self.r, &sums.failed) {
-            r.forget_textures();
-            let mut times = Vec::new();
-            let mut passes = Passes::default();
-            for _ in 0..3 {
-                crate::render::gpu::frame(r, session, cam, &mut passes)?;
-                times.push(r.costs().gpu_ms);
-            }
-            sums.draw_calls += r.costs().draw_calls as f64;
-            if let [Some(a), Some(b), Some(c)] = times[..] {
-                let mut t = [a, b, c];
-                t.sort_by(f64::total_cmp);
-                sums.ms += t[1];
-                sums.timed = true;
-            }
-        }
-        let _ = (session, cam, sums);
-        Ok(())
-    }
-
-    /// The path drawn on the GPU alone, from fresh toroids: the bytes
-    /// each frame after the first uploads.
-    fn path(&mut self, session: &mut Session, path: &[Camera], sums: &mut GpuSums) -> Result<()> {
-        #[cfg(feature = "gpu")]
-        if let (Some(r), None) = (&mut self.r, &sums.failed) {
-            r.forget_textures();
-            let mut passes = Passes::default();
-            for (k, c) in path.iter().enumerate() {
-                crate::render::gpu::frame(r, session, c, &mut passes)?;
-                if k > 0 {
-                    sums.upload += r.costs().upload_bytes as f64;
-                    sums.upload_frames += 1.0;
-                }
-            }
-        }
-        let _ = (session, path, sums);
-        Ok(())
-    }
-
-    /// The row's [`GpuCosts`] over `views` views, when drawn.
-    fn costs(&self, sums: &GpuSums, views: f64) -> Option<GpuCosts> {
-        #[cfg(feature = "gpu")]
-        if let Some(r) = &self.r {
-            let ok = sums.failed.is_none();
-            return Some(GpuCosts {
-                adapter: r.gpu.adapter(),
-                upload_bytes: ok.then(|| sums.upload / sums.upload_frames.max(1.0)),
-                draw_calls: ok.then(|| sums.draw_calls / views),
-                ms: (ok && sums.timed).then(|| sums.ms / views),
-                note: match &sums.failed {
-                    Some(e) => Some(e.clone()),
-                    None if !sums.timed => Some("no timestamp queries".into()),
-                    None => None,
-                },
-            });
-        }
-        let _ = (sums, views);
-        None
-    }
+/// The row's [`GpuCosts`] over `views` views, when drawn.
+fn gpu_costs(gpu: &GpuSide, sums: &GpuSums, views: f64) -> Option<GpuCosts> {
+    let adapter = gpu.adapter()?;
+    let ok = sums.failed.is_none();
+    Some(GpuCosts {
+        adapter,
+        upload_bytes: ok.then(|| sums.upload / sums.upload_frames.max(1.0)),
+        draw_calls: ok.then(|| sums.draw_calls / views),
+        ms: (ok && sums.timed).then(|| sums.ms / views),
+        note: match &sums.failed {
+            Some(e) => Some(e.clone()),
+            None if !sums.timed => Some("no timestamp queries".into()),
+            None => None,
+        },
+    })
 }
 
 /// Measures every setting; `tick(label)` is called after each.
@@ -555,7 +531,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             parts[3] += stats.pass_ms(&["raster"]);
             parts[4] += stats.pass_ms(&["shade"]);
             tris += triangles as f64;
-            if let Err(e) = gpu.view(&mut session, &v.camera, &mut gpu_sums) {
+            if let Err(e) = gpu_view(&mut gpu, &mut session, &v.camera, &mut gpu_sums) {
                 gpu_sums.failed = Some(e.to_string());
             }
         }
@@ -572,7 +548,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
                 prev = Some(img);
             }
         }
-        if let Err(e) = gpu.path(&mut session, &path, &mut gpu_sums) {
+        if let Err(e) = gpu_path(&mut gpu, &mut session, &path, &mut gpu_sums) {
             gpu_sums.failed = Some(e.to_string());
         }
         let nv = views.len() as f64;
@@ -609,7 +585,7 @@ pub fn run(scene: &Scene, opts: &Options, mut tick: impl FnMut(&str)) -> Result<
             pareto: false,
             ms_low_fov: low[0] / low[2].max(1.0),
             triangles_low_fov: low[1] / low[2].max(1.0),
-            gpu: gpu.costs(&gpu_sums, nv),
+            gpu: gpu_costs(&gpu, &gpu_sums, nv),
         });
         tick(&format!("{} {}", st.lod, st.config));
     }
