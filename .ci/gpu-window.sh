@@ -28,6 +28,10 @@ run check-gpu-gl check-gpu --api gl --out "$S/cggl"
 run check-gpu-update check-gpu golden/synthesis-close.toml golden/pack-lossy.toml --update gpu --frames 20 --out "$S/cgu"
 run bench-default bench
 run bench-update bench golden/synthesis-close.toml --update
+# Every cost per scheme on the GPU (timestamps): jacksboro is in the
+# repository; etopo5 only where target/etopo5_16.png was carried.
+T=240 run tradeoff-gpu-jacksboro tradeoff --heightmap tests/data/jacksboro_16.png --effects lambert,morph --gpu --out "$S/tj"
+[ -f target/etopo5_16.png ] && T=300 run tradeoff-gpu-etopo5 tradeoff --heightmap target/etopo5_16.png --effects lambert,morph --gpu --out "$S/te"
 }
 # compare: the GPU's own frame of each golden against its export, tiered
 # and FLIP (the render writes colour alone).
