@@ -232,11 +232,11 @@ const EXPECTED_LOADED: &[(&str, usize)] = &[
     ("export manifest", 5),
     ("compare", 49),
     ("merge cracks", 21),
-    ("merge fly", 27),
-    ("merge golden", 33),
-    ("merge tradeoff", 25),
-    ("merge check-gpu", 31),
-    ("merge export", 23),
+    ("merge fly", 21),
+    ("merge golden", 34),
+    ("merge tradeoff", 31),
+    ("merge check-gpu", 32),
+    ("merge export", 22),
 ];
 
 /// A lossy pack of a small procedural map, its finer levels predicted by
@@ -582,11 +582,11 @@ fn merge_result(
 /// a third are edited as a tree, which keeps the JSON whole).
 const EXPECTED_MERGED: &[(&str, usize)] = &[
     ("cracks", 78),
-    ("fly", 78),
-    ("golden", 66),
-    ("tradeoff", 68),
-    ("check-gpu", 73),
-    ("export", 88),
+    ("fly", 73),
+    ("golden", 76),
+    ("tradeoff", 75),
+    ("check-gpu", 71),
+    ("export", 86),
 ];
 
 /// `terraclip merge` of the two parts written to files: an exit with a
