@@ -849,6 +849,36 @@ mod tests {
         assert!(whole.decode_window(0, [0, 0, 0, 0]).is_ok());
     }
 
+    /// A level past the top is no window at all: nothing decoded, no
+    /// error.
+    #[test]
+    fn a_level_past_the_top_decodes_nothing() {
+        let mut p = Pyramid::decoded(fake(&[[65, 65]], 1), Filter::default(), 1).unwrap();
+        assert!(p.decode_window(1, [0, 0, 64, 64]).is_ok());
+        assert_eq!(p.tiles_resident(), Some(0));
+        assert!(p.decode_window(0, [0, 0, 64, 64]).is_ok());
+        assert_eq!(p.tiles_resident(), Some(9));
+    }
+
+    /// Eviction keeps, on each level coarser than the drawn ones, the
+    /// tiles under the coarsest window halved level by level, the texel
+    /// past its end included, and a ring of one tile around them: level
+    /// 0's [64, 127] is level 1's [32, 64], and with the ring of 32 texels
+    /// its tiles 0 to 3 a side (16 of 25). Without the texel past the end
+    /// it would keep 9.
+    #[test]
+    fn coarser_levels_keep_what_the_coarsest_window_covers_halved() {
+        let f = Filter::default();
+        let mut p = Pyramid::decoded(fake(&[[257, 257], [129, 129], [65, 65]], 3), f, 1).unwrap();
+        p.decode_window(1, [0, 0, 128, 128]).unwrap();
+        p.decode_window(2, [0, 0, 64, 64]).unwrap();
+        assert_eq!(p.tiles_resident_per_level(), Some(vec![0, 25, 9]));
+        let built = p.build_around(&[[64, 64, 127, 127]]);
+        let r = p.tiles_resident_per_level().unwrap();
+        assert_eq!(r[1..], [16, 9], "{r:?}");
+        assert_eq!(built.evicted, 25 - 16);
+    }
+
     /// What a window newly covers: none when it stays, a strip when it
     /// moves, the whole window when the level had none (or was not drawn).
     #[test]
