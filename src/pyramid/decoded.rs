@@ -750,11 +750,17 @@ fn release_runs(lv: &mut PyramidLevel, tiles: &Tiles, gone: &[[usize; 2]]) {
 mod tests {
     use super::*;
 
-    /// Tiles of one height each, of whatever sizes a test names.
-    #[derive(Debug)]
+    /// Tiles of one height each, of whatever sizes a test names. With
+    /// `reads`, each tile reads the coarser level as a four-point
+    /// upsampling does (its footprint halved, a texel more on each side),
+    /// on every level, the coarsest too, as a careless source might; with
+    /// `fail`, that tile of that level fails to decode.
+    #[derive(Debug, Default)]
     struct Fake {
         sizes: Vec<[usize; 2]>,
         ranges: Vec<[f32; 2]>,
+        reads: bool,
+        fail: Option<(usize, [usize; 2])>,
     }
 
     impl TileSource for Fake {
@@ -770,15 +776,19 @@ mod tests {
         fn tile(&self) -> usize {
             32
         }
-        fn reads(&self, _: usize, _: [usize; 2]) -> Option<[i64; 4]> {
-            None
+        fn reads(&self, _: usize, [i, j]: [usize; 2]) -> Option<[i64; 4]> {
+            let (x, y) = (i as i64 * 16, j as i64 * 16);
+            self.reads.then_some([x - 1, y - 1, x + 16, y + 16])
         }
         fn decode(
             &self,
-            _: usize,
-            _: [usize; 2],
+            l: usize,
+            t: [usize; 2],
             _: &PyramidLevel,
         ) -> Result<(Vec<f32>, Vec<bool>), String> {
+            if self.fail == Some((l, t)) {
+                return Err(format!("level {l} tile {t:?}: damaged"));
+            }
             Ok((vec![1.0; 32 * 32], vec![false; 32 * 32]))
         }
     }
@@ -787,7 +797,20 @@ mod tests {
         Arc::new(Fake {
             sizes: sizes.to_vec(),
             ranges: vec![[0.0, 1.0]; ranges],
+            ..Fake::default()
         })
+    }
+
+    /// Levels of `sizes` whose tiles read the coarser level (and fail to
+    /// decode at `fail`), with an ample budget.
+    fn reading(sizes: &[[usize; 2]], fail: Option<(usize, [usize; 2])>) -> Pyramid {
+        let src = Arc::new(Fake {
+            sizes: sizes.to_vec(),
+            ranges: vec![[0.0, 1.0]; sizes.len()],
+            reads: true,
+            fail,
+        });
+        Pyramid::decoded(src, Filter::default(), 1 << 20).unwrap()
     }
 
     /// A source of no level, or whose sizes and ranges disagree, is an
@@ -877,6 +900,86 @@ mod tests {
         let r = p.tiles_resident_per_level().unwrap();
         assert_eq!(r[1..], [16, 9], "{r:?}");
         assert_eq!(built.evicted, 25 - 16);
+    }
+
+    /// A tile's samples, edge tiles cut to the level: 65 × 33 in 32²
+    /// tiles is 3 × 2 tiles, the last column 1 wide, the last row 1 high.
+    #[test]
+    fn edge_tiles_count_only_the_levels_samples() {
+        let p = Pyramid::decoded(fake(&[[65, 33]], 1), Filter::default(), 1).unwrap();
+        let n = |t| p.tile_samples(0, t);
+        assert_eq!(
+            [n([0, 0]), n([1, 0]), n([2, 0]), n([1, 1]), n([2, 1])],
+            [1024, 1024, 32, 32, 1]
+        );
+    }
+
+    /// Reads are clamped to the coarser level they name, and a source that
+    /// names reads on its coarsest level is not followed past it: every
+    /// tile of 128², 64² and 32² levels decodes once. The last tile of each
+    /// row reads a texel past the coarser level's edge, which clamped to
+    /// the finer level would name a tile the coarser one does not have.
+    #[test]
+    fn reads_are_clamped_to_their_level_and_stop_at_the_top() {
+        let sizes = [[128, 128], [64, 64], [32, 32]];
+        let mut p = reading(&sizes, None);
+        let built = p.build_around(&[[0, 0, 127, 127], [0, 0, 63, 63]]);
+        assert_eq!(built.ready, 0..2);
+        assert_eq!(built.tiles, 16 + 4 + 1);
+        assert_eq!(p.tiles_resident_per_level(), Some(vec![16, 4, 1]));
+        let mut q = reading(&sizes, None);
+        q.decode_window(0, [0, 0, 127, 127]).unwrap();
+        assert_eq!(q.tiles_resident_per_level(), Some(vec![16, 4, 1]));
+        assert!(p.decode_error().is_none() && q.decode_error().is_none());
+    }
+
+    /// A tile whose coarser tile failed to decode waits instead of being
+    /// predicted from the hole: level 2's one tile fails, so none of level
+    /// 1's four is decoded, nothing is ready, and the error names the tile.
+    #[test]
+    fn a_tile_whose_coarser_tile_failed_waits() {
+        let mut p = reading(&[[128, 128], [64, 64], [32, 32]], Some((2, [0, 0])));
+        let built = p.build_around(&[[0, 0, 127, 127], [0, 0, 63, 63]]);
+        assert!(built.ready.is_empty(), "{:?}", built.ready);
+        assert_eq!(p.tiles_resident_per_level(), Some(vec![0, 0, 0]));
+        let e = p.decode_error().expect("the failed tile").to_string();
+        assert!(
+            e.contains("fake.tcz") && e.contains("level 2 tile [0, 0]"),
+            "{e}"
+        );
+    }
+
+    /// Decoding ahead, tile by tile, on one 256² level of 32² tiles with an
+    /// ample budget (tiles decoded per update, the drawn window's first):
+    ///
+    /// 1. The corner window [0, 31]² covers one tile and newly covers 1,024
+    ///    texels, which earns the cap of 4 tiles; its ring holds 3 more, so
+    ///    1 + 3 are decoded and a tile's credit is left.
+    /// 2. One texel right, the window newly covers 32 texels, which earns
+    ///    the least, a tile; with the tile left over, both new ring tiles
+    ///    of column 2 are decoded.
+    /// 3. Standing still with the ring whole earns a tile an update that is
+    ///    not banked, so creeping right a texel an update decodes one tile
+    ///    (not a burst of the 4 a bank would hold) when the ring reaches
+    ///    column 3 (the window's right end at 64), and the other the
+    ///    update after.
+    #[test]
+    fn decoding_ahead_spends_what_the_windows_earn() {
+        let mut p = reading(&[[256, 256]], None);
+        let mut tiles = Vec::new();
+        for x in [0, 1, 1, 1, 1, 1] {
+            tiles.push(p.build_around(&[[x, 0, x + 31, 31]]).tiles);
+        }
+        assert_eq!(tiles, [4, 2, 0, 0, 0, 0]);
+        assert_eq!(p.tiles_resident(), Some(6));
+        let creep: Vec<u64> = (2..=34)
+            .map(|x| p.build_around(&[[x, 0, x + 31, 31]]).tiles)
+            .collect();
+        let mut want = vec![0; 33];
+        want[31] = 1; // x = 33: the window's end at 64 puts column 3 in the ring.
+        want[32] = 1;
+        assert_eq!(creep, want);
+        assert_eq!(p.tiles_resident_per_level(), Some(vec![8]));
     }
 
     /// What a window newly covers: none when it stays, a strip when it
