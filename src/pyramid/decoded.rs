@@ -494,8 +494,9 @@ impl Pyramid {
             d.ahead_credit = d.ahead_credit.saturating_sub(spent);
         }
         // With the rings whole, credit is not banked: it would come out as
-        // a burst of tiles when they next need some.
-        if !any && left > 0 {
+        // a burst of tiles when they next need some. (Nothing taken means
+        // a tile or more was on offer: the credit is at least a tile.)
+        if !any {
             let d = self.decoded.as_mut().expect("decoded pyramid");
             d.ahead_credit = 0;
         }
