@@ -755,13 +755,17 @@ mod tests {
     /// `reads`, each tile reads the coarser level as a four-point
     /// upsampling does (its footprint halved, a texel more on each side),
     /// on every level, the coarsest too, as a careless source might; with
-    /// `fail`, that tile of that level fails to decode.
+    /// `fail`, that tile of that level fails to decode. With `sloped`,
+    /// sample (x, y) is x + 1000 y instead of 1, so every range tile has
+    /// bounds of its own. Tiles are `side`² (0 for 32).
     #[derive(Debug, Default)]
     struct Fake {
         sizes: Vec<[usize; 2]>,
         ranges: Vec<[f32; 2]>,
         reads: bool,
         fail: Option<(usize, [usize; 2])>,
+        sloped: bool,
+        side: usize,
     }
 
     impl TileSource for Fake {
@@ -775,7 +779,11 @@ mod tests {
             self.ranges.clone()
         }
         fn tile(&self) -> usize {
-            32
+            if self.side == 0 {
+                32
+            } else {
+                self.side
+            }
         }
         fn reads(&self, _: usize, [i, j]: [usize; 2]) -> Option<[i64; 4]> {
             let (x, y) = (i as i64 * 16, j as i64 * 16);
@@ -790,7 +798,15 @@ mod tests {
             if self.fail == Some((l, t)) {
                 return Err(format!("level {l} tile {t:?}: damaged"));
             }
-            Ok((vec![1.0; 32 * 32], vec![false; 32 * 32]))
+            let (side, [w, h]) = (self.tile(), self.sizes[l]);
+            let (x0, y0) = (t[0] * side, t[1] * side);
+            let (xs, ys) = (x0..(x0 + side).min(w), y0..(y0 + side).min(h));
+            let v: Vec<f32> = ys
+                .flat_map(|y| xs.clone().map(move |x| (x + 1000 * y) as f32))
+                .map(|v| if self.sloped { v } else { 1.0 })
+                .collect();
+            let n = v.len();
+            Ok((v, vec![false; n]))
         }
     }
 
@@ -810,6 +826,7 @@ mod tests {
             ranges: vec![[0.0, 1.0]; sizes.len()],
             reads: true,
             fail,
+            ..Fake::default()
         });
         Pyramid::decoded(src, Filter::default(), 1 << 20).unwrap()
     }
@@ -981,6 +998,30 @@ mod tests {
         want[32] = 1;
         assert_eq!(creep, want);
         assert_eq!(p.tiles_resident_per_level(), Some(vec![8]));
+    }
+
+    /// The height bounds a level's range tiles get as its tiles are
+    /// decoded are the bounds of the whole level: with 48² pack tiles over
+    /// 32² range tiles, a pack tile covers parts of several range tiles
+    /// and a range tile gathers parts of several pack tiles, every row and
+    /// column of them cut at a different place.
+    #[test]
+    fn range_bounds_gathered_tile_by_tile_are_the_levels() {
+        let src = Arc::new(Fake {
+            sizes: vec![[130, 100]],
+            ranges: vec![[0.0, 99_129.0]],
+            sloped: true,
+            side: 48,
+            ..Fake::default()
+        });
+        let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
+        p.decode_window(0, [0, 0, 129, 99]).unwrap();
+        assert_eq!(p.tiles_resident(), Some(3 * 3));
+        assert_eq!(p.levels[0].data[99 * 130 + 129], 99_129.0);
+        let whole = RangeGrid::new(&p.levels[0]);
+        assert_eq!(p.ranges[0].tiles_x, whole.tiles_x);
+        assert_eq!(p.ranges[0].bounds, whole.bounds);
+        assert_eq!(p.lazy_stats().unwrap().samples_built, 130 * 100);
     }
 
     /// What a window newly covers: none when it stays, a strip when it
