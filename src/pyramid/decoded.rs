@@ -634,7 +634,6 @@ impl Pyramid {
             }
             let tiles = &mut d.tiles[l];
             tiles.done[t[1] * tiles.nx + t[0]] = true;
-            tiles.left -= 1;
             d.resident[l].push(t);
             progress.tiles_built += 1;
             progress.samples_built += ((x1 - x0) * (y1 - y0)) as u64;
@@ -671,7 +670,6 @@ impl Pyramid {
             }
             for &[i, j] in &gone {
                 tiles.done[j * tiles.nx + i] = false;
-                tiles.left += 1;
             }
             evicted += gone.len() as u64;
             release_runs(&mut levels[l], tiles, &gone);
@@ -1022,6 +1020,44 @@ mod tests {
         assert_eq!(p.ranges[0].tiles_x, whole.tiles_x);
         assert_eq!(p.ranges[0].bounds, whole.bounds);
         assert_eq!(p.lazy_stats().unwrap().samples_built, 130 * 100);
+    }
+
+    /// Eviction keeps a tile exactly when it lies within a tile of the
+    /// window: of a 512² level of 32² tiles, all decoded, the window on
+    /// tile (5, 5) keeps tiles 4 to 6 a side (a tile ending where the ring
+    /// starts goes). Evicted tiles whose whole row of tiles went read as
+    /// zero (their pages were given back, on Linux), and the next window decodes
+    /// each evicted tile again, and only those.
+    #[test]
+    fn eviction_keeps_the_ring_and_evicted_tiles_decode_again() {
+        let src = Arc::new(Fake {
+            sizes: vec![[512, 512]],
+            ranges: vec![[0.0, 511_511.0]],
+            sloped: true,
+            ..Fake::default()
+        });
+        let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
+        p.decode_window(0, [0, 0, 511, 511]).unwrap();
+        let whole = p.levels[0].data.to_vec();
+        let built = p.build_around(&[[160, 160, 191, 191]]);
+        assert_eq!(built.evicted, 256 - 9);
+        let d = p.decoded.as_ref().unwrap();
+        let mut kept = d.resident[0].clone();
+        kept.sort_unstable();
+        let ring: Vec<[usize; 2]> = (4..7).flat_map(|i| (4..7).map(move |j| [i, j])).collect();
+        assert_eq!(kept, ring);
+        // Tile rows 0 to 3 went whole: every page inside them (the level
+        // need not start on a page, so a page's worth is left at each end).
+        let gone = &p.levels[0].data[1024..4 * 32 * 512 - 1024];
+        assert!(!cfg!(target_os = "linux") || gone.iter().all(|&v| v == 0.0));
+        let before = p.lazy_stats().unwrap().samples_built;
+        p.decode_window(0, [0, 0, 511, 511]).unwrap();
+        let again = p.lazy_stats().unwrap().samples_built - before;
+        assert_eq!(again, (256 - 9) * 32 * 32);
+        assert!(
+            p.levels[0].data[..] == whole[..],
+            "a tile did not come back"
+        );
     }
 
     /// What a window newly covers: none when it stays, a strip when it

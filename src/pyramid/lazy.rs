@@ -86,6 +86,9 @@ pub(super) struct Tiles {
     pub nx: usize,
     pub ny: usize,
     pub done: Vec<bool>,
+    /// Tiles not yet built, which a lazily filtered pyramid counts down to
+    /// know when it is whole; a decoded one evicts and decodes again, and
+    /// counts what it holds instead (`Decoded::resident`).
     pub left: usize,
 }
 
