@@ -687,11 +687,13 @@ fn uncovered(last: &[[i64; 4]], windows: &[[i64; 4]], first: usize) -> u64 {
         .iter()
         .enumerate()
         .map(|(i, &w)| match last.get(first + i) {
-            Some(&[a0, b0, a1, b1]) if a1 >= a0 => {
+            // The overlap of an empty last window (a level not drawn) is
+            // empty too, so it takes nothing off.
+            Some(&[a0, b0, a1, b1]) => {
                 let both = [w[0].max(a0), w[1].max(b0), w[2].min(a1), w[3].min(b1)];
                 area(w) - area(both)
             }
-            _ => area(w),
+            None => area(w),
         })
         .sum()
 }
@@ -754,8 +756,8 @@ mod tests {
     /// upsampling does (its footprint halved, a texel more on each side),
     /// on every level, the coarsest too, as a careless source might; with
     /// `fail`, that tile of that level fails to decode. With `sloped`,
-    /// sample (x, y) is x + 1000 y instead of 1, so every range tile has
-    /// bounds of its own. Tiles are `side`² (0 for 32).
+    /// sample (x, y) is 1 + x + 1000 y instead of 1, so every range tile
+    /// has bounds of its own (and no sample is zero). Tiles are `side`² (0 for 32).
     #[derive(Debug, Default)]
     struct Fake {
         sizes: Vec<[usize; 2]>,
@@ -800,7 +802,7 @@ mod tests {
             let (x0, y0) = (t[0] * side, t[1] * side);
             let (xs, ys) = (x0..(x0 + side).min(w), y0..(y0 + side).min(h));
             let v: Vec<f32> = ys
-                .flat_map(|y| xs.clone().map(move |x| (x + 1000 * y) as f32))
+                .flat_map(|y| xs.clone().map(move |x| (1 + x + 1000 * y) as f32))
                 .map(|v| if self.sloped { v } else { 1.0 })
                 .collect();
             let n = v.len();
@@ -1015,7 +1017,7 @@ mod tests {
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
         p.decode_window(0, [0, 0, 129, 99]).unwrap();
         assert_eq!(p.tiles_resident(), Some(3 * 3));
-        assert_eq!(p.levels[0].data[99 * 130 + 129], 99_129.0);
+        assert_eq!(p.levels[0].data[99 * 130 + 129], 99_130.0);
         let whole = RangeGrid::new(&p.levels[0]);
         assert_eq!(p.ranges[0].tiles_x, whole.tiles_x);
         assert_eq!(p.ranges[0].bounds, whole.bounds);
@@ -1058,6 +1060,111 @@ mod tests {
             p.levels[0].data[..] == whole[..],
             "a tile did not come back"
         );
+    }
+
+    /// What eviction gives back, as its pages read zero (on Linux): on a
+    /// 4096 × 2048 level of 512² tiles whose samples are all non-zero,
+    /// windows move so that tile rows empty partly, wholly, and next to
+    /// rows emptied earlier. After each move:
+    ///
+    /// - no sample of a kept tile reads zero;
+    /// - in a row of tiles partly missing, each run of missing tiles has
+    ///   every page inside each of its sample rows given back;
+    /// - rows of tiles missing whole, side by side, have every page inside
+    ///   their span given back, the pages across their borders included.
+    #[test]
+    fn eviction_gives_back_the_pages_only_missing_tiles_use() {
+        if !cfg!(target_os = "linux") {
+            return;
+        }
+        const SIDE: usize = 512;
+        let (w, h) = (4096usize, 2048usize);
+        let src = Arc::new(Fake {
+            sizes: vec![[w, h]],
+            ranges: vec![[0.0, 2.1e6]],
+            sloped: true,
+            side: SIDE,
+            ..Fake::default()
+        });
+        let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
+        // Whole pages inside samples `r` of the level, as sample indices.
+        let inner = |p: &Pyramid, r: std::ops::Range<usize>| {
+            let base = p.levels[0].data.as_ptr() as usize;
+            let a = (base + 4 * r.start).next_multiple_of(4096);
+            let b = (base + 4 * r.end) / 4096 * 4096;
+            (a - base) / 4..((b.max(a) - base) / 4)
+        };
+        let check = |p: &Pyramid, step: &str| {
+            let t = &p.decoded.as_ref().unwrap().tiles[0];
+            let data = &p.levels[0].data;
+            let done = |i: usize, j: usize| t.done[j * t.nx + i];
+            let empty = |j: usize| (0..t.nx).all(|i| !done(i, j));
+            for y in 0..h {
+                for i in (0..t.nx).filter(|&i| done(i, y / SIDE)) {
+                    let row = &data[y * w + i * SIDE..y * w + (i + 1) * SIDE];
+                    assert!(
+                        row.iter().all(|&v| v != 0.0),
+                        "{step}: kept tile {i} lost row {y}"
+                    );
+                }
+            }
+            let zero = |r: std::ops::Range<usize>, what: String| {
+                let r = inner(p, r);
+                assert!(
+                    data[r].iter().all(|&v| v == 0.0),
+                    "{step}: {what} kept pages"
+                );
+            };
+            let mut j = 0;
+            while j < t.ny {
+                if empty(j) {
+                    let top = j;
+                    while j < t.ny && empty(j) {
+                        j += 1;
+                    }
+                    zero(
+                        top * SIDE * w..j * SIDE * w,
+                        format!("tile rows {top}..{j}"),
+                    );
+                    continue;
+                }
+                let mut i = 0;
+                while i < t.nx {
+                    if done(i, j) {
+                        i += 1;
+                        continue;
+                    }
+                    let a = i;
+                    while i < t.nx && !done(i, j) {
+                        i += 1;
+                    }
+                    for y in j * SIDE..(j + 1) * SIDE {
+                        zero(
+                            y * w + a * SIDE..y * w + i * SIDE,
+                            format!("row {y}, tiles {a}..{i}"),
+                        );
+                    }
+                }
+                j += 1;
+            }
+        };
+        let window = |i: i64, j: i64| [i * 512, j * 512, i * 512 + 511, j * 512 + 511];
+        p.decode_window(0, [0, 0, 4095, 2047]).unwrap();
+        check(&p, "decoded");
+        // Keeps tile rows 0 to 2 (tiles 4 to 6): row 3 goes whole, the
+        // others in runs of 4 and 1 tiles.
+        p.build_around(&[window(5, 1)]);
+        check(&p, "(5, 1)");
+        // Row 2 goes whole beside row 3, gone before it.
+        p.build_around(&[window(5, 0)]);
+        check(&p, "(5, 0)");
+        p.decode_window(0, [0, 0, 4095, 2047]).unwrap();
+        // Rows 0 and 1 go whole, row 2 keeps its middle.
+        p.build_around(&[window(5, 3)]);
+        check(&p, "(5, 3)");
+        // Rows 2 and 3 lose their middles, beside rows emptied before.
+        p.build_around(&[[5 * 512, 4000, 5 * 512 + 511, 4511]]);
+        check(&p, "beyond");
     }
 
     /// What a window newly covers: none when it stays, a strip when it
