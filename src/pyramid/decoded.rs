@@ -1062,28 +1062,29 @@ mod tests {
         );
     }
 
-    /// What eviction gives back, as its pages read zero (on Linux): on a
-    /// 4096 × 2048 level of 512² tiles whose samples are all non-zero,
-    /// windows move so that tile rows empty partly, wholly, and next to
-    /// rows emptied earlier. After each move:
+    /// A move of [`evicts`]: decode the whole level, or draw the window
+    /// on tile (i, j).
+    enum Move {
+        All,
+        On(i64, i64),
+    }
+
+    /// Makes `moves` on a 4096 × 2048 level of `side`² tiles whose samples
+    /// are all non-zero and checks, after each, what eviction gave back,
+    /// as its pages read zero (Linux):
     ///
     /// - no sample of a kept tile reads zero;
     /// - in a row of tiles partly missing, each run of missing tiles has
     ///   every page inside each of its sample rows given back;
     /// - rows of tiles missing whole, side by side, have every page inside
     ///   their span given back, the pages across their borders included.
-    #[test]
-    fn eviction_gives_back_the_pages_only_missing_tiles_use() {
-        if !cfg!(target_os = "linux") {
-            return;
-        }
-        const SIDE: usize = 512;
+    fn evicts(side: usize, moves: &[Move]) {
         let (w, h) = (4096usize, 2048usize);
         let src = Arc::new(Fake {
             sizes: vec![[w, h]],
             ranges: vec![[0.0, 2.1e6]],
             sloped: true,
-            side: SIDE,
+            side,
             ..Fake::default()
         });
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
@@ -1094,26 +1095,25 @@ mod tests {
             let b = (base + 4 * r.end) / 4096 * 4096;
             (a - base) / 4..((b.max(a) - base) / 4)
         };
-        let check = |p: &Pyramid, step: &str| {
+        let check = |p: &Pyramid, step: usize| {
             let t = &p.decoded.as_ref().unwrap().tiles[0];
             let data = &p.levels[0].data;
             let done = |i: usize, j: usize| t.done[j * t.nx + i];
             let empty = |j: usize| (0..t.nx).all(|i| !done(i, j));
             for y in 0..h {
-                for i in (0..t.nx).filter(|&i| done(i, y / SIDE)) {
-                    let row = &data[y * w + i * SIDE..y * w + (i + 1) * SIDE];
+                for i in (0..t.nx).filter(|&i| done(i, y / side)) {
+                    let row = &data[y * w + i * side..y * w + (i + 1) * side];
+                    let lost = row.iter().any(|&v| v == 0.0);
                     assert!(
-                        row.iter().all(|&v| v != 0.0),
-                        "{step}: kept tile {i} lost row {y}"
+                        !lost,
+                        "{side}² tiles, move {step}: kept tile {i} lost row {y}"
                     );
                 }
             }
             let zero = |r: std::ops::Range<usize>, what: String| {
                 let r = inner(p, r);
-                assert!(
-                    data[r].iter().all(|&v| v == 0.0),
-                    "{step}: {what} kept pages"
-                );
+                let kept = data[r].iter().any(|&v| v != 0.0);
+                assert!(!kept, "{side}² tiles, move {step}: {what} kept pages");
             };
             let mut j = 0;
             while j < t.ny {
@@ -1123,7 +1123,7 @@ mod tests {
                         j += 1;
                     }
                     zero(
-                        top * SIDE * w..j * SIDE * w,
+                        top * side * w..j * side * w,
                         format!("tile rows {top}..{j}"),
                     );
                     continue;
@@ -1138,9 +1138,9 @@ mod tests {
                     while i < t.nx && !done(i, j) {
                         i += 1;
                     }
-                    for y in j * SIDE..(j + 1) * SIDE {
+                    for y in j * side..(j + 1) * side {
                         zero(
-                            y * w + a * SIDE..y * w + i * SIDE,
+                            y * w + a * side..y * w + i * side,
                             format!("row {y}, tiles {a}..{i}"),
                         );
                     }
@@ -1148,23 +1148,38 @@ mod tests {
                 j += 1;
             }
         };
-        let window = |i: i64, j: i64| [i * 512, j * 512, i * 512 + 511, j * 512 + 511];
-        p.decode_window(0, [0, 0, 4095, 2047]).unwrap();
-        check(&p, "decoded");
-        // Keeps tile rows 0 to 2 (tiles 4 to 6): row 3 goes whole, the
-        // others in runs of 4 and 1 tiles.
-        p.build_around(&[window(5, 1)]);
-        check(&p, "(5, 1)");
-        // Row 2 goes whole beside row 3, gone before it.
-        p.build_around(&[window(5, 0)]);
-        check(&p, "(5, 0)");
-        p.decode_window(0, [0, 0, 4095, 2047]).unwrap();
-        // Rows 0 and 1 go whole, row 2 keeps its middle.
-        p.build_around(&[window(5, 3)]);
-        check(&p, "(5, 3)");
-        // Rows 2 and 3 lose their middles, beside rows emptied before.
-        p.build_around(&[[5 * 512, 4000, 5 * 512 + 511, 4511]]);
-        check(&p, "beyond");
+        let s = side as i64;
+        for (step, m) in moves.iter().enumerate() {
+            match *m {
+                Move::All => p.decode_window(0, [0, 0, 4095, 2047]).unwrap(),
+                Move::On(i, j) => {
+                    p.build_around(&[[i * s, j * s, i * s + s - 1, j * s + s - 1]]);
+                }
+            }
+            check(&p, step);
+        }
+    }
+
+    /// Eviction gives back the pages only missing tiles use ([`evicts`]).
+    /// With 512² tiles (8 × 4): tile rows empty partly (runs of 4 and 1
+    /// tiles), wholly, beside a row emptied before (below it, then above
+    /// it). With 1024² tiles (4 × 2), whose rows are two pages wide: a run
+    /// starting after a kept tile and one ending before one, where a run
+    /// a tile too long or too short would give back a kept tile's page or
+    /// keep a missing one's.
+    #[test]
+    fn eviction_gives_back_the_pages_only_missing_tiles_use() {
+        if !cfg!(target_os = "linux") {
+            return;
+        }
+        use Move::*;
+        // (5, 1) keeps tile rows 0 to 2 (tiles 4 to 6), so row 3 goes whole;
+        // (5, 0) then empties row 2 beside it; (5, 3) empties rows 0 and 1;
+        // (5, 8) keeps nothing, so rows 2 and 3 go beside them.
+        evicts(512, &[All, On(5, 1), On(5, 0), All, On(5, 3), On(5, 8)]);
+        // (0, 0) keeps tiles 0 and 1: runs [2, 4); (3, 0) keeps 2 and 3:
+        // runs [0, 2).
+        evicts(1024, &[All, On(0, 0), All, On(3, 0), On(9, 9)]);
     }
 
     /// What a window newly covers: none when it stays, a strip when it
