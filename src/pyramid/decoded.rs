@@ -1103,7 +1103,7 @@ mod tests {
             for y in 0..h {
                 for i in (0..t.nx).filter(|&i| done(i, y / side)) {
                     let row = &data[y * w + i * side..y * w + (i + 1) * side];
-                    let lost = row.iter().any(|&v| v == 0.0);
+                    let lost = row.contains(&0.0);
                     assert!(
                         !lost,
                         "{side}² tiles, move {step}: kept tile {i} lost row {y}"
