@@ -757,7 +757,8 @@ mod tests {
     /// on every level, the coarsest too, as a careless source might; with
     /// `fail`, that tile of that level fails to decode. With `sloped`,
     /// sample (x, y) is 1 + x + 1000 y instead of 1, so every range tile
-    /// has bounds of its own (and no sample is zero). Tiles are `side`² (0 for 32).
+    /// has bounds of its own (and no sample is zero), and no-data where
+    /// x + y is even (so no-data flags given back show too). Tiles are `side`² (0 for 32).
     #[derive(Debug, Default)]
     struct Fake {
         sizes: Vec<[usize; 2]>,
@@ -801,12 +802,13 @@ mod tests {
             let (side, [w, h]) = (self.tile(), self.sizes[l]);
             let (x0, y0) = (t[0] * side, t[1] * side);
             let (xs, ys) = (x0..(x0 + side).min(w), y0..(y0 + side).min(h));
-            let v: Vec<f32> = ys
-                .flat_map(|y| xs.clone().map(move |x| (1 + x + 1000 * y) as f32))
-                .map(|v| if self.sloped { v } else { 1.0 })
-                .collect();
-            let n = v.len();
-            Ok((v, vec![false; n]))
+            let at: Vec<[usize; 2]> = ys.flat_map(|y| xs.clone().map(move |x| [x, y])).collect();
+            let v = at.iter().map(|&[x, y]| match self.sloped {
+                true => (1 + x + 1000 * y) as f32,
+                false => 1.0,
+            });
+            let nd = at.iter().map(|&[x, y]| self.sloped && (x + y) % 2 == 0);
+            Ok((v.collect(), nd.collect()))
         }
     }
 
@@ -1088,22 +1090,23 @@ mod tests {
             ..Fake::default()
         });
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
-        // Whole pages inside samples `r` of the level, as sample indices.
-        let inner = |p: &Pyramid, r: std::ops::Range<usize>| {
-            let base = p.levels[0].data.as_ptr() as usize;
-            let a = (base + 4 * r.start).next_multiple_of(4096);
-            let b = (base + 4 * r.end) / 4096 * 4096;
-            (a - base) / 4..((b.max(a) - base) / 4)
+        // Whole pages inside samples `r` of an array at `base` of `size`
+        // bytes a sample, as sample indices.
+        let inner = |base: usize, size: usize, r: std::ops::Range<usize>| {
+            let a = (base + size * r.start).next_multiple_of(4096);
+            let b = (base + size * r.end) / 4096 * 4096;
+            (a - base) / size..((b.max(a) - base) / size)
         };
         let check = |p: &Pyramid, step: usize| {
             let t = &p.decoded.as_ref().unwrap().tiles[0];
-            let data = &p.levels[0].data;
+            let (data, nodata) = (&p.levels[0].data, &p.levels[0].nodata);
             let done = |i: usize, j: usize| t.done[j * t.nx + i];
             let empty = |j: usize| (0..t.nx).all(|i| !done(i, j));
             for y in 0..h {
                 for i in (0..t.nx).filter(|&i| done(i, y / side)) {
-                    let row = &data[y * w + i * side..y * w + (i + 1) * side];
-                    let lost = row.contains(&0.0);
+                    let xs = i * side..(i + 1) * side;
+                    let lost = data[y * w..][xs.clone()].contains(&0.0)
+                        || xs.clone().any(|x| nodata[y * w + x] != ((x + y) % 2 == 0));
                     assert!(
                         !lost,
                         "{side}² tiles, move {step}: kept tile {i} lost row {y}"
@@ -1111,8 +1114,9 @@ mod tests {
                 }
             }
             let zero = |r: std::ops::Range<usize>, what: String| {
-                let r = inner(p, r);
-                let kept = data[r].iter().any(|&v| v != 0.0);
+                let d = inner(data.as_ptr() as usize, 4, r.clone());
+                let n = inner(nodata.as_ptr() as usize, 1, r);
+                let kept = data[d].iter().any(|&v| v != 0.0) || nodata[n].contains(&true);
                 assert!(!kept, "{side}² tiles, move {step}: {what} kept pages");
             };
             let mut j = 0;
@@ -1175,8 +1179,13 @@ mod tests {
         use Move::*;
         // (5, 1) keeps tile rows 0 to 2 (tiles 4 to 6), so row 3 goes whole;
         // (5, 0) then empties row 2 beside it; (5, 3) empties rows 0 and 1;
-        // (5, 8) keeps nothing, so rows 2 and 3 go beside them.
-        evicts(512, &[All, On(5, 1), On(5, 0), All, On(5, 3), On(5, 8)]);
+        // (5, 8) keeps nothing, so rows 2 and 3 go beside them; (5, -1)
+        // keeps only row 0, which (5, 8) then empties above rows gone.
+        let (a, b) = (On(5, 8), On(5, -1));
+        evicts(
+            512,
+            &[All, On(5, 1), On(5, 0), All, On(5, 3), a, All, b, On(5, 8)],
+        );
         // (0, 0) keeps tiles 0 and 1: runs [2, 4); (3, 0) keeps 2 and 3:
         // runs [0, 2).
         evicts(1024, &[All, On(0, 0), All, On(3, 0), On(9, 9)]);
