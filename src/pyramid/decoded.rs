@@ -1095,7 +1095,10 @@ mod tests {
         let inner = |base: usize, size: usize, r: std::ops::Range<usize>| {
             let a = (base + size * r.start).next_multiple_of(4096);
             let b = (base + size * r.end) / 4096 * 4096;
-            (a - base) / size..((b.max(a) - base) / size)
+            match b > a {
+                true => (a - base) / size..(b - base) / size,
+                false => 0..0,
+            }
         };
         let check = |p: &Pyramid, step: usize| {
             let t = &p.decoded.as_ref().unwrap().tiles[0];
