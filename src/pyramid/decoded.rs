@@ -1064,10 +1064,11 @@ mod tests {
         );
     }
 
-    /// A move of [`evicts`]: decode the whole level, or draw the window
-    /// on tile (i, j).
+    /// A move of [`evicts`]: decode the whole level or tile (i, j), or
+    /// draw the window on tile (i, j).
     enum Move {
         All,
+        Tile(i64, i64),
         On(i64, i64),
     }
 
@@ -1159,6 +1160,10 @@ mod tests {
         for (step, m) in moves.iter().enumerate() {
             match *m {
                 Move::All => p.decode_window(0, [0, 0, 4095, 2047]).unwrap(),
+                Move::Tile(i, j) => {
+                    let rect = [i * s, j * s, i * s + s - 1, j * s + s - 1];
+                    p.decode_window(0, rect).unwrap();
+                }
                 Move::On(i, j) => {
                     p.build_around(&[[i * s, j * s, i * s + s - 1, j * s + s - 1]]);
                 }
@@ -1192,6 +1197,12 @@ mod tests {
         // (0, 0) keeps tiles 0 and 1: runs [2, 4); (3, 0) keeps 2 and 3:
         // runs [0, 2).
         evicts(1024, &[All, On(0, 0), All, On(3, 0), On(9, 9)]);
+        // A run whose columns hold a kept tile in the row above: (2, 0) is
+        // kept, (0, 1) goes, and its run is [0, 3) of row 1 (a run takes in
+        // the missing tiles beside it, up to the window's tile); tile 2's
+        // part of a sample row holds part of a page wherever the level
+        // starts in its page.
+        evicts(1024, &[Tile(2, 0), Tile(0, 1), On(3, 1)]);
     }
 
     /// What a window newly covers: none when it stays, a strip when it
