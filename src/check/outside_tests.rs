@@ -3,12 +3,85 @@
 //! goldens in tests/compare.rs reach these only as whole images, where a
 //! threshold moved by one (`>` for `>=`, `9 + x` for `9 * x`) changes no
 //! verdict.
+//!
+//! Then what a comparison reports, the loaders and the reach, on a small
+//! export ([`SMALL`]): a comparison of it takes milliseconds where a
+//! golden's takes about a second, so these run with the unit tests, where
+//! mutation testing runs them in seconds a mutant.
 
 use super::*;
-use crate::check::compare::{Tier, TOLERANCE_DEPTH_ULP};
+use crate::check::compare::{self as cmp, Tier, TOLERANCE_DEPTH_ULP};
+use crate::export::Exported;
 
 fn check(reference: &[f32], theirs: &[f32], w: usize) -> std::result::Result<(), String> {
     check_convention(Path::new("theirs.f32"), reference, theirs, w).map_err(|e| e.to_string())
+}
+
+/// A fresh folder for one test's files, under the crate's `target/`.
+fn scratch(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/unit-tmp/outside")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A small scene for the comparisons below: 96 × 64 pixels of a 129²
+/// procedural map seen from beyond its south edge, sky above, so that an
+/// export takes milliseconds and holds surface, background, silhouettes
+/// and level seams.
+const SMALL: &str = r#"
+effects = ["lambert", "fog", "morph"]
+
+[terrain]
+procedural = { seed = 7, width = 129, height = 129, amplitude = 300.0 }
+cell_size = 10.0
+
+[lod]
+scheme = "clipmap"
+n = 15
+
+[camera]
+position = [640.0, -1200.0, 250.0]
+look_at = [640.0, -900.0, 120.0]
+fov = 60.0
+near = 1.0
+far = 5000.0
+
+[image]
+width = 128
+height = 80
+"#;
+
+/// [`SMALL`] exported once for the whole test binary.
+fn small() -> &'static Exported {
+    static E: std::sync::OnceLock<Exported> = std::sync::OnceLock::new();
+    E.get_or_init(|| {
+        let scene = crate::scene::Scene::parse(SMALL, "small.toml", Path::new(".")).unwrap();
+        let dir = scratch("small");
+        crate::export::scene(&scene, "small", Some(SMALL), 1, 0.0, &dir).unwrap();
+        crate::export::read(&dir).unwrap()
+    })
+}
+
+#[test]
+fn the_small_scene_shows_surface_background_and_edges() {
+    let e = small();
+    let n = e.image.depth.len();
+    let sky = e.image.depth.iter().filter(|&&z| z == 1.0).count();
+    eprintln!(
+        "small: {n} px, {sky} background, {} triangles",
+        e.frame.positions.len() / 3
+    );
+    assert!(sky > n / 10 && sky < n / 2, "{sky} of {n}");
+    let r = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    let band = cmp::tie_band_for(&r, false, 4)
+        .iter()
+        .filter(|&&b| b)
+        .count();
+    eprintln!("tie band at 4 bits: {band} px");
+    assert!(band > n / 100 && band < n / 4, "{band} of {n}");
 }
 
 /// The 24-bit grid's step.
@@ -196,4 +269,642 @@ fn the_error_pictures_colours() {
     assert_eq!(ulp(TOLERANCE_DEPTH_ULP + 1), yellow);
     assert_eq!(ulp(1 << 16), yellow);
     assert_eq!(ulp((1 << 16) + 1), [255, 0, 0, 255]);
+}
+
+/// A depth OpenEXR's channel, one case per fallback: `Z`, else `depth`,
+/// else `Y`, else `R`, else the only channel; two unnamed channels are an
+/// error naming the file. Each channel holds its own values, so the one
+/// read is known.
+#[test]
+fn depth_exr_channels_are_read_in_their_documented_order() {
+    use crate::export::exr::{write, FloatLayer};
+    let dir = scratch("depth-channels");
+    std::fs::create_dir_all(&dir).unwrap();
+    let (w, h) = (3u32, 2u32);
+    // Channel `name`'s values: distinct per channel.
+    let values = |name: &str| -> Vec<f32> {
+        let k = name.bytes().map(u32::from).sum::<u32>() as f32;
+        (0..w * h).map(|i| k / 1000.0 + i as f32 / 100.0).collect()
+    };
+    for (channels, want) in [
+        (&["Z", "depth", "Y", "R"][..], Some("Z")),
+        (&["depth", "Y", "R"][..], Some("depth")),
+        (&["Y", "R", "G"][..], Some("Y")),
+        (&["R", "G", "B"][..], Some("R")),
+        (&["G"][..], Some("G")),
+        (&["G", "B"][..], None),
+    ] {
+        let layer = FloatLayer {
+            name: "depth".into(),
+            width: w as usize,
+            height: h as usize,
+            channels: channels
+                .iter()
+                .map(|c| (c.to_string(), values(c)))
+                .collect(),
+        };
+        let path = dir.join(format!("{}.exr", channels.join("-")));
+        std::fs::write(&path, write(&[layer]).unwrap()).unwrap();
+        match (load_depth(&path, w, h, None), want) {
+            (Ok(d), Some(c)) => {
+                assert_eq!(d, values(c), "{channels:?}: read another channel than {c}")
+            }
+            (Err(e), None) => {
+                let e = e.to_string();
+                assert!(
+                    e.contains("G-B.exr") && e.contains("no channel named Z, depth, Y or R"),
+                    "{e}"
+                );
+            }
+            (r, want) => panic!("{channels:?}: {r:?}, wanted {want:?}"),
+        }
+    }
+}
+
+/// A colour image bottom row first, an EXR with the depth in another
+/// channel than the one read first, an EXR with the reference's layout
+/// beside another layer with a `Z`, and `--depth-channel`.
+#[test]
+fn colour_rows_and_exr_channels_are_named() {
+    use crate::export::exr::{write, FloatLayer};
+    let dir = scratch("exr-channels");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = small();
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let png = dir.join("theirs.png");
+    std::fs::write(&png, e.image.png().unwrap()).unwrap();
+    let opts = |c: Option<&str>| Options {
+        depth_channel: c.map(str::to_string),
+        ..Options::new(Mode::Exact)
+    };
+    // Colour bottom row first.
+    let mut flipped = e.image.clone();
+    for y in 0..h {
+        let src = (h - 1 - y) * w * 4;
+        flipped.rgba[y * w * 4..(y + 1) * w * 4].copy_from_slice(&e.image.rgba[src..src + w * 4]);
+    }
+    let upside = dir.join("upside-down.png");
+    std::fs::write(&upside, flipped.png().unwrap()).unwrap();
+    let err = run(&e.dir, Some(&upside), None, &opts(None), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("upside-down.png") && err.contains("bottom first"),
+        "{err}"
+    );
+    // RGB with the depth in G: R is read first, and G is named.
+    let layer = |name: &str, chans: &[(&str, Vec<f32>)]| FloatLayer {
+        name: name.into(),
+        width: w,
+        height: h,
+        channels: chans
+            .iter()
+            .map(|(c, v)| (c.to_string(), v.clone()))
+            .collect(),
+    };
+    let zeros = vec![0.0f32; w * h];
+    let rgb = dir.join("rgb.exr");
+    let depth = e.image.depth.clone();
+    std::fs::write(
+        &rgb,
+        write(&[layer(
+            "",
+            &[
+                ("R", zeros.clone()),
+                ("G", depth.clone()),
+                ("B", zeros.clone()),
+            ],
+        )])
+        .unwrap(),
+    )
+    .unwrap();
+    let err = run(&e.dir, Some(&png), Some(&rgb), &opts(None), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("channel R is not the depth") && err.contains("--depth-channel G"),
+        "{err}"
+    );
+    let o = run(&e.dir, Some(&png), Some(&rgb), &opts(Some("G")), None).unwrap();
+    assert!(o.pass && o.depth_compared, "{o:?}");
+    // The reference's layout (layer depth, channel Z) after another layer
+    // with a Z: the depth layer is read.
+    let two = dir.join("two-layers.exr");
+    std::fs::write(
+        &two,
+        write(&[
+            layer("normal", &[("X", zeros.clone()), ("Z", zeros.clone())]),
+            layer("depth", &[("Z", depth.clone())]),
+        ])
+        .unwrap(),
+    )
+    .unwrap();
+    let o = run(&e.dir, Some(&png), Some(&two), &opts(None), None).unwrap();
+    assert!(o.pass, "{o:?}");
+    // Z is then ambiguous by name, not as layer.channel.
+    let err = run(&e.dir, Some(&png), Some(&two), &opts(Some("Z")), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("2 channels are called 'Z'") && err.contains("normal.Z"),
+        "{err}"
+    );
+    let o = run(&e.dir, Some(&png), Some(&two), &opts(Some("depth.Z")), None).unwrap();
+    assert!(o.pass, "{o:?}");
+    let err = run(&e.dir, Some(&png), Some(&two), &opts(Some("W")), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no") && err.contains("channel 'W'") && err.contains("depth.Z"),
+        "{err}"
+    );
+}
+
+/// `--only depth` judges depth alone (no image needed), `--only colour`
+/// colour alone, and the default both.
+#[test]
+fn only_depth_and_only_colour_compare_one_buffer() {
+    let e = small();
+    let mut recoloured = e.image.clone();
+    for v in recoloured.rgba.iter_mut().step_by(4) {
+        *v = v.wrapping_add(40);
+    }
+    let mut deeper = e.image.clone();
+    for z in deeper.depth.iter_mut().filter(|z| **z < 1.0) {
+        *z = f32::from_bits(z.to_bits() + 1000);
+    }
+    let opts = |only| Options {
+        only,
+        ..Options::new(Mode::Exact)
+    };
+    let pass = |img: &Image, only| compare(e, img, &opts(only), None).unwrap().pass;
+    use Only::{Both, Colour, Depth};
+    assert!(pass(&recoloured, Depth) && !pass(&recoloured, Colour) && !pass(&recoloured, Both));
+    assert!(pass(&deeper, Colour) && !pass(&deeper, Depth) && !pass(&deeper, Both));
+    // Depth alone with no image at all.
+    let dir = scratch("only-depth");
+    std::fs::create_dir_all(&dir).unwrap();
+    let f = dir.join("d.f32");
+    let bytes: Vec<u8> = e.image.depth.iter().flat_map(|z| z.to_le_bytes()).collect();
+    std::fs::write(&f, bytes).unwrap();
+    let o = run(&e.dir, None, Some(&f), &opts(Depth), None).unwrap();
+    assert!(o.pass && o.depth_compared && o.only == Depth, "{o:?}");
+    let err = run(&e.dir, None, Some(&f), &opts(Both), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--image"), "{err}");
+    let no_depth = Image {
+        depth: vec![],
+        ..e.image.clone()
+    };
+    let err = compare(e, &no_depth, &opts(Depth), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("--depth"), "{err}");
+    // Sub-pixel precision out of range.
+    let bits = |b| Options {
+        subpixel_bits: b,
+        ..Options::new(Mode::Tiered)
+    };
+    for b in [3, 9] {
+        let err = compare(e, &e.image, &bits(b), None)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("--subpixel-bits"), "{err}");
+    }
+}
+
+/// Big-endian depths whose little-endian reading is finite but outside
+/// 0..1 (not NaN or infinite) are still named as big-endian: 0.5000039
+/// (bits 0x3F000042) reads as 32.00024 the other way round.
+#[test]
+fn big_endian_is_named_when_the_wrong_reading_is_finite() {
+    let dir = scratch("depth-endian");
+    std::fs::create_dir_all(&dir).unwrap();
+    let z = f32::from_bits(0x3F00_0042);
+    assert_eq!(f32::from_le_bytes(z.to_be_bytes()), 32.000_24);
+    let path = dir.join("be.f32");
+    std::fs::write(
+        &path,
+        [z; 6]
+            .iter()
+            .flat_map(|v| v.to_be_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    let err = load_depth(&path, 3, 2, None).unwrap_err().to_string();
+    assert!(
+        err.contains("be.f32") && err.contains("big-endian floats"),
+        "{err}"
+    );
+    // The same values little-endian read as they are.
+    std::fs::write(
+        &path,
+        [z; 6]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    assert_eq!(load_depth(&path, 3, 2, None).unwrap(), vec![z; 6]);
+}
+
+/// What a failing comparison reports, pixel by pixel, in each mode: the
+/// failing pixels in scan order with their place, tier, band and distance
+/// to the nearest edge of the set-up triangles whose box, grown by a
+/// pixel, holds the pixel;
+/// the worst pixel (the first with the largest step); the reason; and the
+/// error picture's panels.
+#[test]
+fn a_failing_comparison_lists_its_pixels_and_draws_them() {
+    let e = small();
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let raster = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    let band = cmp::tie_band_for(&raster, e.frame.effects.wireframe, cmp::MIN_SUBPIXEL_BITS);
+    // Terrain pixels with no band and no background within 3 px, at
+    // least 8 px apart; and one band pixel as far from them.
+    let clear = |i: usize| {
+        let (x, y) = (i % w, i / w);
+        x >= 3
+            && y >= 3
+            && x + 3 < w
+            && y + 3 < h
+            && (y - 3..=y + 3).all(|v| {
+                (x - 3..=x + 3).all(|u| !band[v * w + u] && e.image.depth[v * w + u] < 1.0)
+            })
+    };
+    let apart = |picked: &[usize], i: usize| {
+        picked
+            .iter()
+            .all(|&p| (p % w).abs_diff(i % w).max((p / w).abs_diff(i / w)) >= 8)
+    };
+    let mut picked: Vec<usize> = vec![];
+    for i in (0..w * h).step_by(3) {
+        if picked.len() < 4 && clear(i) && apart(&picked, i) {
+            picked.push(i);
+        }
+    }
+    let in_band = (0..w * h)
+        .step_by(13)
+        .find(|&i| band[i] && e.image.depth[i] < 1.0 && apart(&picked, i))
+        .unwrap();
+    assert_eq!(picked.len(), 4, "{picked:?}");
+    let [early, far, far2, deep] = [picked[0], picked[1], picked[2], picked[3]];
+    let mut theirs = e.image.clone();
+    let nudge = |img: &mut Image, i: usize, by: u8| {
+        for k in 0..3 {
+            let c = &mut img.rgba[4 * i + k];
+            *c = if *c < 128 { *c + by } else { *c - by };
+        }
+    };
+    nudge(&mut theirs, early, 2);
+    nudge(&mut theirs, in_band, 3);
+    nudge(&mut theirs, far, 120);
+    nudge(&mut theirs, far2, 120);
+    theirs.depth[far] *= 0.5;
+    theirs.depth[deep] = f32::from_bits(theirs.depth[deep].to_bits() + 1);
+    let nearest = |x: usize, y: usize| {
+        raster
+            .tris
+            .iter()
+            .filter(|t| {
+                let [x0, y0, x1, y1] = t.bbox.map(|v| v as f64);
+                let (x, y) = (x as f64, y as f64);
+                (x0 - 1.0..=x1 + 1.0).contains(&x) && (y0 - 1.0..=y1 + 1.0).contains(&y)
+            })
+            .flat_map(|t| cmp::edge_ends(&t.edges))
+            .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
+            .filter(|d| d.is_finite())
+            .min_by(f64::total_cmp)
+    };
+    let dir = scratch("failing-pixels");
+    let run = |mode: Mode| {
+        let o = compare(e, &theirs, &Options::new(mode), Some(&dir)).unwrap();
+        assert!(!o.pass, "{mode}");
+        for f in &o.failing {
+            let i = f.y * w + f.x;
+            assert_eq!(f.in_band, band[i], "{mode} {f:?}");
+            assert_eq!(
+                f.reference_rgba[..],
+                e.image.rgba[4 * i..4 * i + 4],
+                "{f:?}"
+            );
+            assert_eq!(f.theirs_rgba[..], theirs.rgba[4 * i..4 * i + 4], "{f:?}");
+            assert_eq!(f.nearest_edge_px, nearest(f.x, f.y), "{mode} {f:?}");
+        }
+        let worst = o.worst.unwrap();
+        assert_eq!((worst.x, worst.y), (far % w, far / w), "{mode}");
+        let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+        assert_eq!(diff.dimensions(), (4 * w as u32, h as u32));
+        let panel = |k: usize, i: usize| diff.get_pixel((k * w + i % w) as u32, (i / w) as u32).0;
+        for i in 0..w * h {
+            assert_eq!(
+                panel(0, i)[..],
+                e.image.rgba[4 * i..4 * i + 4],
+                "{mode} {i}"
+            );
+            assert_eq!(panel(2, i)[..], theirs.rgba[4 * i..4 * i + 4], "{mode} {i}");
+        }
+        (
+            o,
+            panel(1, far),
+            panel(1, early),
+            panel(3, deep),
+            panel(3, far),
+        )
+    };
+    let listed = |o: &Outcome| -> Vec<(usize, &str)> {
+        o.failing.iter().map(|f| (f.y * w + f.x, f.tier)).collect()
+    };
+    let mut all = [early, in_band, far, far2, deep];
+    all.sort();
+
+    let (o, mask_far, mask_early, dz_deep, dz_far) = run(Mode::Exact);
+    assert_eq!(
+        listed(&o),
+        all.iter().map(|&i| (i, "differs")).collect::<Vec<_>>()
+    );
+    let reason = o.reason.unwrap();
+    assert!(
+        reason.starts_with("4 px differ in colour (by up to 120 steps) and 2 in depth"),
+        "{reason}"
+    );
+    assert_eq!(mask_far, [255, 0, 0, 255]);
+    assert_eq!(mask_early, [255, 0, 0, 255]);
+    assert_eq!(dz_deep, [60, 120, 255, 255]);
+    assert_eq!(dz_far, [255, 0, 0, 255]);
+    let quiet = (0..w * h).find(|&i| !all.contains(&i)).unwrap();
+    let dim = e.image.rgba[4 * quiet..4 * quiet + 3].iter().map(|c| c / 3);
+    let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+    let got = diff.get_pixel((w + quiet % w) as u32, (quiet / w) as u32).0;
+    assert_eq!(got[..3], dim.collect::<Vec<u8>>()[..]);
+
+    let (o, mask_far, mask_early, _, _) = run(Mode::Tiered);
+    let tiered: Vec<usize> = listed(&o).iter().map(|&(i, _)| i).collect();
+    let mut want = vec![early, far, far2];
+    want.sort();
+    assert_eq!(tiered, want, "{:?}", o.failing);
+    assert!(o
+        .failing
+        .iter()
+        .all(|f| f.tier != "same" && f.tier != "hole"));
+    assert_eq!(mask_far, [0, 255, 255, 255]);
+    assert_eq!(mask_early, [0, 255, 255, 255]);
+
+    let (o, _, _, _, _) = run(Mode::Flip);
+    let flipped: Vec<usize> = listed(&o).iter().map(|&(i, _)| i).collect();
+    assert!(
+        flipped.contains(&far) && flipped.contains(&far2),
+        "{flipped:?}"
+    );
+    for &i in &flipped {
+        assert!(!band[i]);
+        let near = [early, far, far2]
+            .iter()
+            .any(|&p| (p % w).abs_diff(i % w).max((p / w).abs_diff(i / w)) <= 3);
+        assert!(near, "{i} is listed in flip mode: {flipped:?}");
+    }
+    let reason = o.reason.unwrap();
+    assert!(
+        reason.contains("1 px of depth differ outside the tie band") && !reason.contains("holes"),
+        "{reason}"
+    );
+}
+
+/// A comparison of images that are not whole or not the same size is an
+/// error, before any pixel is read.
+#[test]
+fn images_of_another_size_or_not_whole_are_refused() {
+    let e = small();
+    let (w, h) = (e.image.width, e.image.height);
+    let opts = Options::new(Mode::Tiered);
+    let turned = Image {
+        width: h,
+        height: w,
+        ..e.image.clone()
+    };
+    let err = compare(e, &turned, &opts, None).unwrap_err().to_string();
+    assert!(
+        err.contains(&format!("a {h}x{w} image where the reference is {w}x{h}")),
+        "{err}"
+    );
+    let mut short = e.image.clone();
+    short.rgba.pop();
+    let err = compare(e, &short, &opts, None).unwrap_err().to_string();
+    assert!(err.contains("colour bytes"), "{err}");
+    let mut short = e.image.clone();
+    short.depth.pop();
+    let err = compare(e, &short, &opts, None).unwrap_err().to_string();
+    assert!(err.contains("depths"), "{err}");
+    let mut no_depth = crate::export::read(&e.dir).unwrap();
+    no_depth.image.depth.clear();
+    let err = compare(&no_depth, &e.image, &opts, None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("not a whole image"), "{err}");
+}
+
+/// A failing pixel's nearest edge is looked for only among the triangles
+/// whose box, grown by a pixel, holds it. Over every pixel of the small
+/// frame that gives the nearest of all the triangles' edges, within the
+/// fixed-point unit by which two triangles' copies of a shared edge may
+/// differ (2^-8 px of snapping, at most 10^-6 px between the copies,
+/// `nearest_edge`'s comment): 10^-5 px here.
+#[test]
+fn the_nearest_edge_is_the_nearest_of_every_triangle() {
+    let e = small();
+    let r = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    let (w, h) = (r.width as usize, r.height as usize);
+    let (mut some, mut near, mut none) = (0, 0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let all = r
+                .tris
+                .iter()
+                .flat_map(|t| cmp::edge_ends(&t.edges))
+                .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
+                .filter(|d| d.is_finite())
+                .min_by(f64::total_cmp);
+            match (nearest_edge(&r, x, y), all) {
+                (Some(d), Some(all)) => {
+                    some += 1;
+                    assert!(d >= all, "({x}, {y}): {d} against {all}");
+                    if all <= 0.5 {
+                        near += 1;
+                        assert!(d - all <= 1e-5, "({x}, {y}): {d} against {all}");
+                    }
+                }
+                (None, all) => {
+                    none += 1;
+                    assert!(all.is_none_or(|a| a > 0.5), "({x}, {y}): {all:?}");
+                }
+                (d, None) => panic!("({x}, {y}): {d:?} with no triangle"),
+            }
+        }
+    }
+    eprintln!(
+        "{some} pixels with a triangle near ({near} within 0.5 px of an edge), {none} without"
+    );
+    assert!(
+        some > w * h / 2 && near > 0 && none > 0,
+        "{some} {near} {none}"
+    );
+}
+
+/// The reach for `bits` of sub-pixel precision holds the frame drawn with
+/// every vertex moved by up to s = 2^-bits + 1/256 px: its four corners
+/// and points inside the square (a depth within the comparison's
+/// [`TOLERANCE_DEPTH_ULP`] of the reach's range, since a depth
+/// interpolated at a move between two corners may round a few ULP past
+/// both: 18 pixels here at 8 bits were more than 1 ULP out, none more
+/// than 16). Moved by
+/// 2.5 s, some pixel leaves it.
+#[test]
+fn the_reach_holds_a_move_within_the_square_and_not_beyond() {
+    let e = small();
+    for bits in [4, 8] {
+        let s = 0.5f32.powi(bits as i32) + 1.0 / 256.0;
+        let r = reach(e, bits);
+        // The move as a translation of normalised device coordinates
+        // after the view-projection (y is up there, down in the window).
+        let shifted = |dx: f32, dy: f32| {
+            let mut f = e.frame.clone();
+            let ndc = glam::Vec3::new(2.0 * dx / f.width as f32, -2.0 * dy / f.height as f32, 0.0);
+            let vp = glam::Mat4::from_cols_array_2d(&f.uniforms.view_proj);
+            f.uniforms.view_proj = (glam::Mat4::from_translation(ndc) * vp).to_cols_array_2d();
+            crate::render::draw(&f, &Default::default(), &mut Default::default()).0
+        };
+        let outside = |img: &Image| {
+            let beyond = |a: f32, z: f32| cmp::ulp_distance(a, z) > u64::from(TOLERANCE_DEPTH_ULP);
+            (0..img.depth.len())
+                .filter(|&i| {
+                    let z = img.depth[i];
+                    (0..4).any(|k| !(r.lo[i][k]..=r.hi[i][k]).contains(&img.rgba[4 * i + k]))
+                        || (z < r.zlo[i] && beyond(r.zlo[i], z))
+                        || (z > r.zhi[i] && beyond(r.zhi[i], z))
+                })
+                .count()
+        };
+        let inside = [
+            (s, s),
+            (-s, s),
+            (s, -s),
+            (-s, -s),
+            (0.9 * s, -0.9 * s),
+            (-0.5 * s, 0.0),
+        ];
+        for (dx, dy) in inside {
+            assert_eq!(outside(&shifted(dx, dy)), 0, "{bits} bits: ({dx}, {dy})");
+        }
+        for (dx, dy) in [(2.5 * s, 0.0), (0.0, -2.5 * s)] {
+            let n = outside(&shifted(dx, dy));
+            eprintln!("{bits} bits: shifted ({dx}, {dy}): {n} px outside the reach");
+            assert!(n > 0, "{bits} bits: ({dx}, {dy})");
+        }
+    }
+}
+
+/// The reference compared with itself: every figure of the outcome, and
+/// with a folder the two pictures (four panels of the frame's size, the
+/// error mask dimmed reference and the depth panel grey).
+#[test]
+fn the_reference_passes_every_mode_with_every_figure_zero() {
+    let e = small();
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let r = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    for mode in [Mode::Exact, Mode::Tiered, Mode::Flip] {
+        for bits in [4, 8] {
+            let opts = Options {
+                subpixel_bits: bits,
+                ..Options::new(mode)
+            };
+            let dir = scratch(&format!("itself-{mode}-{bits}"));
+            let o = compare(e, &e.image, &opts, Some(&dir)).unwrap();
+            let band = cmp::tie_band_for(&r, e.frame.effects.wireframe, bits);
+            assert!(
+                o.pass && o.reason.is_none() && o.failing.is_empty(),
+                "{o:?}"
+            );
+            assert_eq!((o.mode, o.only, o.subpixel_bits), (mode, Only::Both, bits));
+            assert_eq!(o.tie_distance_px, cmp::tie_distance(bits));
+            assert_eq!((o.width, o.height), (w as u32, h as u32));
+            assert!(o.depth_compared && o.worst.is_none());
+            assert_eq!(
+                (
+                    o.colour_px_differ,
+                    o.depth_px_differ,
+                    o.max_channel_diff,
+                    o.max_depth_ulp
+                ),
+                (0, 0, 0, 0)
+            );
+            assert_eq!(
+                o.tiers,
+                Tiers {
+                    same: w * h,
+                    ..Tiers::default()
+                }
+            );
+            assert_eq!(o.band_px, band.iter().filter(|&&b| b).count());
+            assert!(o.band_px > 0 && o.band_px < w * h / 2, "{}", o.band_px);
+            for f in [o.flip, o.flip_all] {
+                // FLIP's largest error starts at the least normal float.
+                assert_eq!((f.mean, f.p9999), (0.0, 0.0));
+                assert!(f.max <= f32::MIN_POSITIVE, "{f:?}");
+                assert_eq!((f.mean_max, f.p9999_max), (FLIP_MEAN, FLIP_TAIL_MAX));
+            }
+            assert_eq!(o.outputs, vec![dir.join("diff.png"), dir.join("flip.png")]);
+            let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+            assert_eq!(diff.dimensions(), (4 * w as u32, h as u32));
+            let heat = image::open(dir.join("flip.png")).unwrap().to_rgba8();
+            assert_eq!(heat.dimensions(), (w as u32, h as u32));
+            for i in 0..w * h {
+                let px = |k: usize| diff.get_pixel((k * w + i % w) as u32, (i / w) as u32).0;
+                let c = &e.image.rgba[4 * i..4 * i + 4];
+                assert_eq!(px(0)[..], c[..]);
+                assert_eq!(px(1), [c[0] / 3, c[1] / 3, c[2] / 3, 255]);
+                assert_eq!(px(2)[..], c[..]);
+                let z = e.image.depth[i];
+                assert_eq!(px(3), depth_colour(z, z));
+            }
+        }
+    }
+    // Without depth, three panels.
+    let dir = scratch("itself-colour");
+    let opts = Options {
+        only: Only::Colour,
+        ..Options::new(Mode::Tiered)
+    };
+    let o = compare(e, &e.image, &opts, Some(&dir)).unwrap();
+    assert!(o.pass && !o.depth_compared, "{o:?}");
+    let diff = image::open(dir.join("diff.png")).unwrap().to_rgba8();
+    assert_eq!(diff.dimensions(), (3 * w as u32, h as u32));
+}
+
+/// The worst pixel is the first in scan order with the largest channel
+/// step, its colours and depths read at that pixel.
+#[test]
+fn the_worst_pixel_is_the_first_with_the_largest_step() {
+    let e = small();
+    let w = e.image.width as usize;
+    let mut theirs = e.image.clone();
+    let bump = |img: &mut Image, i: usize, k: usize, by: u8| {
+        let c = &mut img.rgba[4 * i + k];
+        *c = if *c < 128 { *c + by } else { *c - by };
+    };
+    // Steps of 9 at pixels 100 and 700 (the first of the two is the
+    // worst), 5 before them at 50, and 9 again at 900.
+    bump(&mut theirs, 50, 0, 5);
+    bump(&mut theirs, 100, 1, 9);
+    bump(&mut theirs, 700, 2, 9);
+    bump(&mut theirs, 900, 0, 9);
+    theirs.depth[100] = 0.25;
+    let o = compare(e, &theirs, &Options::new(Mode::Exact), None).unwrap();
+    let worst = o.worst.unwrap();
+    assert_eq!((worst.x, worst.y), (100 % w, 100 / w));
+    assert_eq!(worst.a_rgba[..], e.image.rgba[400..404]);
+    assert_eq!(worst.b_rgba[..], theirs.rgba[400..404]);
+    assert_eq!((worst.a_depth, worst.b_depth), (e.image.depth[100], 0.25));
+    assert_eq!(o.max_channel_diff, 9);
+    assert_eq!((o.colour_px_differ, o.depth_px_differ), (4, 1));
 }

@@ -820,6 +820,19 @@ mod tests {
         })
     }
 
+    /// A one-level [`Fake`] of `size`, `sloped`, in `side`² tiles (0 for
+    /// 32), its range the samples' own: 1 at (0, 0) to w + 1000 (h − 1)
+    /// at the far corner.
+    fn sloped([w, h]: [usize; 2], side: usize) -> Arc<dyn TileSource> {
+        Arc::new(Fake {
+            sizes: vec![[w, h]],
+            ranges: vec![[1.0, (w + 1000 * (h - 1)) as f32]],
+            sloped: true,
+            side,
+            ..Fake::default()
+        })
+    }
+
     /// Levels of `sizes` whose tiles read the coarser level (and fail to
     /// decode at `fail`), with an ample budget.
     fn reading(sizes: &[[usize; 2]], fail: Option<(usize, [usize; 2])>) -> Pyramid {
@@ -1009,13 +1022,7 @@ mod tests {
     /// column of them cut at a different place.
     #[test]
     fn range_bounds_gathered_tile_by_tile_are_the_levels() {
-        let src = Arc::new(Fake {
-            sizes: vec![[130, 100]],
-            ranges: vec![[0.0, 99_129.0]],
-            sloped: true,
-            side: 48,
-            ..Fake::default()
-        });
+        let src = sloped([130, 100], 48);
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
         p.decode_window(0, [0, 0, 129, 99]).unwrap();
         assert_eq!(p.tiles_resident(), Some(3 * 3));
@@ -1034,12 +1041,7 @@ mod tests {
     /// each evicted tile again, and only those.
     #[test]
     fn eviction_keeps_the_ring_and_evicted_tiles_decode_again() {
-        let src = Arc::new(Fake {
-            sizes: vec![[512, 512]],
-            ranges: vec![[0.0, 511_511.0]],
-            sloped: true,
-            ..Fake::default()
-        });
+        let src = sloped([512, 512], 0);
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
         p.decode_window(0, [0, 0, 511, 511]).unwrap();
         let whole = p.levels[0].data.to_vec();
@@ -1083,13 +1085,7 @@ mod tests {
     ///   their span given back, the pages across their borders included.
     fn evicts(side: usize, moves: &[Move]) {
         let (w, h) = (4096usize, 2048usize);
-        let src = Arc::new(Fake {
-            sizes: vec![[w, h]],
-            ranges: vec![[0.0, 2.1e6]],
-            sloped: true,
-            side,
-            ..Fake::default()
-        });
+        let src = sloped([w, h], side);
         let mut p = Pyramid::decoded(src, Filter::default(), 1).unwrap();
         // Whole pages inside samples `r` of an array at `base` of `size`
         // bytes a sample, as sample indices.

@@ -86,10 +86,6 @@ pub(super) struct Tiles {
     pub nx: usize,
     pub ny: usize,
     pub done: Vec<bool>,
-    /// Tiles not yet built, which a lazily filtered pyramid counts down to
-    /// know when it is whole; a decoded one evicts and decodes again, and
-    /// counts what it holds instead (`Decoded::resident`).
-    pub left: usize,
 }
 
 impl Tiles {
@@ -100,7 +96,6 @@ impl Tiles {
             nx,
             ny,
             done: vec![done; nx * ny],
-            left: if done { 0 } else { nx * ny },
         }
     }
     /// Tiles that hold level samples of `[x0, x1] × [y0, y1]` (clamped to
@@ -217,7 +212,10 @@ impl Pyramid {
             })
             .collect();
         let tiles_total = tiles.iter().map(|t| (t.nx * t.ny) as u64).sum();
-        let tiles_built = tiles_total - tiles.iter().map(|t| t.left as u64).sum::<u64>();
+        let tiles_built = tiles
+            .iter()
+            .map(|t| t.done.iter().filter(|&&d| d).count() as u64)
+            .sum();
         Ok(Pyramid {
             filter,
             levels,
@@ -398,7 +396,6 @@ impl Pyramid {
             }
             let tiles = &mut z.tiles[l];
             tiles.done[t[1] * tiles.nx + t[0]] = true;
-            tiles.left -= 1;
             progress.tiles_built += 1;
             progress.samples_built += b.len() as u64;
         }
@@ -407,11 +404,12 @@ impl Pyramid {
     /// Drops the lazy state once every tile exists, so the pyramid is an
     /// ordinary one; a level of only no-data gets the eager build's bounds.
     fn finish_if_complete(&mut self) {
-        if self
-            .lazy
-            .as_ref()
-            .is_some_and(|z| z.tiles.iter().all(|t| t.left == 0))
-        {
+        // A lazy pyramid builds each tile once, so its count of tiles
+        // built says when it is whole.
+        let whole = self
+            .progress
+            .is_some_and(|p| p.tiles_built == p.tiles_total);
+        if self.lazy.is_some() && whole {
             self.lazy = None;
             for l in &mut self.levels {
                 if l.min > l.max {
