@@ -27,7 +27,7 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// A small scene for the comparisons below: 96 × 64 pixels of a 129²
+/// A small scene for the comparisons below: 128 × 80 pixels of a 129²
 /// procedural map seen from beyond its south edge, sky above, so that an
 /// export takes milliseconds and holds surface, background, silhouettes
 /// and level seams.
@@ -92,6 +92,10 @@ fn an_empty_or_one_row_image_is_never_upside_down() {
     assert!(!rows_reversed(0, 2, |_, _| true));
     assert!(!rows_reversed(0, 0, |_, _| true));
     assert!(!rows_reversed(5, 1, |_, _| true));
+    // Two rows are the fewest that can be upside down: pixel i matches
+    // only the pixel in the same column of the other row.
+    let other_row = |i: usize, j: usize| i % 5 == j % 5 && i / 5 != j / 5;
+    assert!(rows_reversed(5, 2, other_row));
 }
 
 #[test]
@@ -507,6 +511,21 @@ fn big_endian_is_named_when_the_wrong_reading_is_finite() {
     )
     .unwrap();
     assert_eq!(load_depth(&path, 3, 2, None).unwrap(), vec![z; 6]);
+    // Depths in 0..1 read either way round are little-endian, as given:
+    // zeros, 2^-126 and 2^-149, whose bytes reversed are other tiny
+    // positive floats.
+    let both = [0.0, f32::MIN_POSITIVE, 0.0, 1.0e-45, 0.0, 0.0];
+    assert!(both
+        .iter()
+        .all(|z| (0.0..=1.0).contains(&f32::from_le_bytes(z.to_be_bytes()))));
+    std::fs::write(
+        &path,
+        both.iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    assert_eq!(load_depth(&path, 3, 2, None).unwrap(), both.to_vec());
 }
 
 /// What a failing comparison reports, pixel by pixel, in each mode: the
