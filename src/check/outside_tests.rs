@@ -122,6 +122,14 @@ fn the_count_of_depths_outside_0_1_is_exact() {
         err.contains("3 depths outside 0..1 (the first NaN at (4, 0))"),
         "{err}"
     );
+    // A finite depth outside 0..1 is as bad as a NaN, and named first
+    // when it comes first.
+    theirs[2] = 1.5;
+    let err = check(&reference, &theirs, 20).unwrap_err();
+    assert!(
+        err.contains("4 depths outside 0..1 (the first 1.5 at (2, 0))"),
+        "{err}"
+    );
 }
 
 /// Near the far plane 0.5 + 0.5 z is within 10⁻⁶ of z, so a buffer that
@@ -140,6 +148,38 @@ fn gl_range_needs_most_pixels_unlike_ours() {
     let theirs: Vec<f32> = (0..100).map(|i| if i < 40 { far } else { 0.65 }).collect();
     let err = check(&reference, &theirs, 10).unwrap_err();
     assert!(err.contains("default depth range"), "{err}");
+    // Exactly half equal to ours (and every pixel at 0.5 + 0.5 z): not
+    // fewer than half, so not GL's range.
+    let reference: Vec<f32> = (0..100).map(|i| if i < 50 { far } else { 0.3 }).collect();
+    let theirs: Vec<f32> = (0..100).map(|i| if i < 50 { far } else { 0.65 }).collect();
+    assert_eq!(check(&reference, &theirs, 10), Ok(()));
+    // Half at 0.5 + 0.5 z and half elsewhere: not nine in ten.
+    let reference = vec![0.3f32; 100];
+    let theirs: Vec<f32> = (0..100)
+        .map(|i| if i < 50 { 0.65 } else { 0.2 + 0.001 * i as f32 })
+        .collect();
+    assert_eq!(check(&reference, &theirs, 10), Ok(()));
+    // Background is no evidence either way: GL's range on the surface
+    // is named however much background (where both hold 1) there is.
+    let reference: Vec<f32> = (0..100).map(|i| if i < 60 { 1.0 } else { 0.3 }).collect();
+    let theirs: Vec<f32> = (0..100).map(|i| if i < 60 { 1.0 } else { 0.65 }).collect();
+    let err = check(&reference, &theirs, 10).unwrap_err();
+    assert!(err.contains("40 of 40 surface pixels"), "{err}");
+}
+
+/// Depth rows bottom first are named, as colour rows are.
+#[test]
+fn depth_rows_bottom_first_are_named() {
+    let (w, h) = (10, 10);
+    let reference: Vec<f32> = (0..w * h)
+        .map(|i| 0.1 + 0.01 * (i / w) as f32 + 0.0001 * (i % w) as f32)
+        .collect();
+    let theirs: Vec<f32> = (0..w * h)
+        .map(|i| reference[(h - 1 - i / w) * w + i % w])
+        .collect();
+    let err = check(&reference, &theirs, w).unwrap_err();
+    assert!(err.contains("only upside down"), "{err}");
+    assert_eq!(check(&reference, &reference, w), Ok(()));
 }
 
 #[test]
@@ -153,6 +193,20 @@ fn cleared_to_0_takes_more_than_half_the_background() {
         err.contains("cleared to 0") && err.contains("3 of 4"),
         "{err}"
     );
+    // Of 10 background pixels, 6 zeros are more than half, 5 are not.
+    let reference: Vec<f32> = (0..20).map(|i| if i < 10 { 0.3 } else { 1.0 }).collect();
+    let zeros = |k: usize| -> Vec<f32> {
+        (0..20)
+            .map(|i| match i {
+                0..10 => 0.3,
+                _ if i - 10 < k => 0.0,
+                _ => 1.0,
+            })
+            .collect()
+    };
+    assert_eq!(check(&reference, &zeros(5), 20), Ok(()));
+    let err = check(&reference, &zeros(6), 20).unwrap_err();
+    assert!(err.contains("6 of 10"), "{err}");
 }
 
 /// Zeros inside the surface (holes their renderer left cleared) are no
@@ -166,6 +220,26 @@ fn reversed_z_pairs_only_pixels_drawn_on_both_sides() {
         .map(|i| if i % 2 == 0 { 0.2 } else { 0.0 })
         .collect();
     assert_eq!(check(&reference, &theirs, 40), Ok(()));
+}
+
+/// A pair needs both pixels surface in ours (depth under 1) and drawn in
+/// theirs (depth in (0, 1)): a row of surface pixels each beside a pixel
+/// that is background in ours, or 1 in theirs, pairs nothing, however
+/// those neighbours are ordered.
+#[test]
+fn reversed_z_pairs_need_surface_in_ours_and_theirs() {
+    let alternate =
+        |a: f32, b: f32| -> Vec<f32> { (0..40).map(|i| if i % 2 == 0 { a } else { b }).collect() };
+    // Background in ours beside surface, drawn nearer than it in theirs.
+    assert_eq!(
+        check(&alternate(0.2, 1.0), &alternate(0.8, 0.5), 40),
+        Ok(())
+    );
+    // Surface in ours, 1 in theirs beside a nearer pixel.
+    assert_eq!(
+        check(&alternate(0.2, 0.3), &alternate(1.0, 0.5), 40),
+        Ok(())
+    );
 }
 
 /// Pairs are neighbours along a row: never the last pixel of one row and
@@ -212,6 +286,10 @@ fn reversed_z_takes_nine_in_ten_pairs_ordered_the_other_way() {
         (0..25).map(|y| row(y, y < 20)).unzip();
     let (reference, theirs) = (reference.concat(), theirs.concat());
     assert_eq!(check(&reference, &theirs, 2), Ok(()));
+    // 36 rows ordered the other way, 4 ours: 9 times as many, not more.
+    let (reference, theirs): (Vec<[f32; 2]>, Vec<[f32; 2]>) =
+        (0..40).map(|y| row(y, y < 36)).unzip();
+    assert_eq!(check(&reference.concat(), &theirs.concat(), 2), Ok(()));
     // 40 rows ordered the other way, 4 ours: reversed Z.
     let (reference, theirs): (Vec<[f32; 2]>, Vec<[f32; 2]>) =
         (0..44).map(|y| row(y, y < 40)).unzip();
@@ -234,6 +312,13 @@ fn d24_is_named_only_for_differing_depths_within_a_step_of_ours() {
     let fixed: Vec<f32> = off_grid.iter().map(|&z| d24(z)).collect();
     let err = check(&off_grid, &fixed, 40).unwrap_err();
     assert!(err.contains("24-bit depth buffer (D24)"), "{err}");
+    // Only depths under 0.5 are looked at: a pixel of ours at exactly
+    // 0.5 that theirs holds far from it does not hide the D24 buffer.
+    let (mut ours, mut theirs) = (off_grid.clone(), fixed.clone());
+    ours.push(0.5);
+    theirs.push(0.7);
+    let err = check(&ours, &theirs, 41).unwrap_err();
+    assert!(err.contains("all 40 differing depths"), "{err}");
     // Ours where our depths lie on the grid: equal, so nothing to see.
     assert_eq!(check(&fixed, &fixed, 40), Ok(()));
     // On the grid but five steps off: not a rounding of ours.
