@@ -856,6 +856,44 @@ fn the_nearest_edge_is_the_nearest_of_every_triangle() {
     );
 }
 
+/// A triangle alone: the pixels one past its box on every side still
+/// find its edges. In a whole frame a neighbour's shared edge answers
+/// there too, so only a frame of one triangle shows a box grown too
+/// little on one side.
+#[test]
+fn a_lone_triangle_is_found_one_pixel_past_its_box() {
+    let e = small();
+    let mut r = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    let (w, h) = (r.width as i32, r.height as i32);
+    // The largest triangle with a pixel of room on every side.
+    let tri = *r
+        .tris
+        .iter()
+        .filter(|t| t.bbox[0] >= 1 && t.bbox[1] >= 1 && t.bbox[2] + 1 < w && t.bbox[3] + 1 < h)
+        .max_by_key(|t| (t.bbox[2] - t.bbox[0]) * (t.bbox[3] - t.bbox[1]))
+        .expect("a triangle inside the frame");
+    r.tris = vec![tri];
+    let [x0, y0, x1, y1] = tri.bbox;
+    let ring = (x0 - 1..=x1 + 1)
+        .flat_map(|x| [(x, y0 - 1), (x, y1 + 1)])
+        .chain((y0..=y1).flat_map(|y| [(x0 - 1, y), (x1 + 1, y)]));
+    let mut seen = 0;
+    for (x, y) in ring {
+        let own = cmp::edge_ends(&tri.edges)
+            .into_iter()
+            .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
+            .filter(|d| d.is_finite())
+            .min_by(f64::total_cmp);
+        assert_eq!(nearest_edge(&r, x as usize, y as usize), own, "({x}, {y})");
+        seen += 1;
+    }
+    // Two pixels past the box: no box holds it.
+    if x1 + 2 < w {
+        assert_eq!(nearest_edge(&r, (x1 + 2) as usize, y0 as usize), None);
+    }
+    assert!(seen >= 8, "{seen}");
+}
+
 /// The reach for `bits` of sub-pixel precision holds the frame drawn with
 /// every vertex moved by up to s = 2^-bits + 1/256 px: its four corners
 /// and points inside the square (a depth within the comparison's
