@@ -582,7 +582,7 @@ pub(crate) fn encode_tile<C: Coarse + ?Sized>(
             let mut planes = Planes::new(w, h);
             let (mut pred, mut act) = (Vec::new(), Vec::new());
             for ph in 0..4 {
-                predict::phase(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
+                predict::phase::<true, _>(ph, &planes, coarse, (x0, y0), &mut pred, &mut act);
                 for (i, (&p, &a)) in pred.iter().zip(&act).enumerate() {
                     let (tx, ty) = planes.xy(ph, i);
                     let c = context(ph, a, &thresholds(quant.unit(p)));
@@ -844,7 +844,15 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
         Some(coarse) => {
             planes.reset(w, h);
             for ph in 0..4 {
-                predict::phase(ph, planes, coarse, (x0, y0), pred, act);
+                // The fast coder has no contexts, so no activities.
+                match coder {
+                    Coder::Ratio => {
+                        predict::phase::<true, _>(ph, planes, coarse, (x0, y0), pred, act)
+                    }
+                    Coder::Fast => {
+                        predict::phase::<false, _>(ph, planes, coarse, (x0, y0), pred, act)
+                    }
+                }
                 let sym = stage
                     .next(pred.len(), sym, mk, |best, mk| {
                         models_of(ph, pred, act, quant, best, class, mk)
