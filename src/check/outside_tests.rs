@@ -1051,3 +1051,91 @@ fn the_worst_pixel_is_the_first_with_the_largest_step() {
     assert_eq!(o.max_channel_diff, 9);
     assert_eq!((o.colour_px_differ, o.depth_px_differ), (4, 1));
 }
+
+/// The frame drawn with every vertex moved by (dx, dy) px: a translation
+/// of normalised device coordinates after the view-projection (y is up
+/// there, down in the window).
+fn moved(e: &Exported, dx: f32, dy: f32) -> Image {
+    let mut f = e.frame.clone();
+    let ndc = glam::Vec3::new(2.0 * dx / f.width as f32, -2.0 * dy / f.height as f32, 0.0);
+    let vp = glam::Mat4::from_cols_array_2d(&f.uniforms.view_proj);
+    f.uniforms.view_proj = (glam::Mat4::from_translation(ndc) * vp).to_cols_array_2d();
+    crate::render::draw(&f, &Default::default(), &mut Default::default()).0
+}
+
+/// A renderer whose vertices land at a corner of the reach's square
+/// (s = 2^-4 + 1/256 px each way) passes the tiered and FLIP modes, which
+/// look up the reach, and fails the exact mode, which does not. Without
+/// the reach the tiered mode fails it: 2,669 pixels shifted outside the
+/// band, 88 unmatched.
+#[test]
+fn a_sub_pixel_move_passes_by_the_reach_and_fails_exact() {
+    let e = small();
+    let s = 0.5f32.powi(MIN_SUBPIXEL_BITS as i32) + 1.0 / 256.0;
+    let theirs = moved(e, s, s);
+    let o = compare(e, &theirs, &Options::new(Mode::Exact), None).unwrap();
+    assert!(!o.pass && o.depth_px_differ > 0, "{o:?}");
+    for mode in [Mode::Tiered, Mode::Flip] {
+        let o = compare(e, &theirs, &Options::new(mode), None).unwrap();
+        assert!(o.pass, "{mode}: {o:?}");
+    }
+}
+
+/// FLIP mode judges colour away from the edges by both figures: five
+/// inverted pixels there leave the mean far under [`FLIP_MEAN`] but put
+/// the 99.99th percentile over [`FLIP_TAIL_MAX`], and fail it, though
+/// the geometry (depth) is the reference's; the same five in the band
+/// are not judged by FLIP.
+#[test]
+fn a_few_wrong_colours_away_from_edges_fail_flip_by_the_tail() {
+    let e = small();
+    let (w, h) = (e.image.width as usize, e.image.height as usize);
+    let raster = crate::render::raster(&e.frame, crate::raster::Path::from_env());
+    let band = cmp::tie_band_for(&raster, e.frame.effects.wireframe, MIN_SUBPIXEL_BITS);
+    let invert = |img: &mut Image, at: &[usize]| {
+        for &i in at {
+            for k in 0..3 {
+                img.rgba[4 * i + k] = 255 - img.rgba[4 * i + k];
+            }
+        }
+    };
+    // Surface pixels 9 px apart: in the band, or with neither band nor
+    // background within R px.
+    const R: usize = 3;
+    let clear = |i: usize| {
+        let (x, y) = (i % w, i / w);
+        x >= R
+            && y >= R
+            && x + R < w
+            && y + R < h
+            && (y - R..=y + R).all(|v| {
+                (x - R..=x + R).all(|u| !band[v * w + u] && e.image.depth[v * w + u] < 1.0)
+            })
+    };
+    let pick = |in_band: bool| -> Vec<usize> {
+        (0..w * h)
+            .step_by(9)
+            .filter(|&i| {
+                if in_band {
+                    band[i] && e.image.depth[i] < 1.0
+                } else {
+                    clear(i)
+                }
+            })
+            .take(5)
+            .collect()
+    };
+    let mut theirs = e.image.clone();
+    let off = pick(false);
+    assert_eq!(off.len(), 5, "{off:?}");
+    invert(&mut theirs, &off);
+    let o = compare(e, &theirs, &Options::new(Mode::Flip), None).unwrap();
+    assert!(!o.pass, "{o:?}");
+    assert!(o.flip.mean < FLIP_MEAN / 10.0, "{:?}", o.flip);
+    assert!(o.flip.p9999 > FLIP_TAIL_MAX, "{:?}", o.flip);
+    assert_eq!((o.depth_px_differ, o.tiers.holes), (0, 0), "{o:?}");
+    let mut theirs = e.image.clone();
+    invert(&mut theirs, &pick(true));
+    let o = compare(e, &theirs, &Options::new(Mode::Flip), None).unwrap();
+    assert!(o.pass && o.flip.p9999 == 0.0, "{o:?}");
+}
