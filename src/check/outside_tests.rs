@@ -1084,8 +1084,10 @@ fn a_sub_pixel_move_passes_by_the_reach_and_fails_exact() {
 /// FLIP mode judges colour away from the edges by both figures: five
 /// inverted pixels there leave the mean far under [`FLIP_MEAN`] but put
 /// the 99.99th percentile over [`FLIP_TAIL_MAX`], and fail it, though
-/// the geometry (depth) is the reference's; the same five in the band
-/// are not judged by FLIP.
+/// the geometry (depth) is the reference's, and the reason gives FLIP's
+/// figures alone. The same five as background are holes, and the reason
+/// names them and the depth. The same five in the band are not judged by
+/// FLIP.
 #[test]
 fn a_few_wrong_colours_away_from_edges_fail_flip_by_the_tail() {
     let e = small();
@@ -1134,6 +1136,36 @@ fn a_few_wrong_colours_away_from_edges_fail_flip_by_the_tail() {
     assert!(o.flip.mean < FLIP_MEAN / 10.0, "{:?}", o.flip);
     assert!(o.flip.p9999 > FLIP_TAIL_MAX, "{:?}", o.flip);
     assert_eq!((o.depth_px_differ, o.tiers.holes), (0, 0), "{o:?}");
+    // The reason names FLIP's figures and nothing else.
+    let why = o.reason.clone().unwrap_or_default();
+    assert!(
+        why.starts_with("FLIP over the ") && !why.contains(';'),
+        "{why}"
+    );
+    assert!(
+        why.contains(&format!("99.99th percentile {:.4}", o.flip.p9999)),
+        "{why}"
+    );
+    // The same pixels as background, their colour the reference's: holes,
+    // named, and depth outside the band; FLIP's line only if its figures
+    // fail.
+    let mut theirs = e.image.clone();
+    for &i in &off {
+        theirs.depth[i] = 1.0;
+    }
+    let o = compare(e, &theirs, &Options::new(Mode::Flip), None).unwrap();
+    let why = o.reason.clone().unwrap_or_default();
+    assert!(!o.pass && o.tiers.holes > 0, "{o:?}");
+    assert!(why.contains(&format!("{} holes", o.tiers.holes)), "{why}");
+    assert!(
+        why.contains("px of depth differ outside the tie band"),
+        "{why}"
+    );
+    assert_eq!(
+        why.contains("FLIP over the"),
+        o.flip.mean > FLIP_MEAN || o.flip.p9999 > FLIP_TAIL_MAX,
+        "{why}"
+    );
     let mut theirs = e.image.clone();
     invert(&mut theirs, &pick(true));
     let o = compare(e, &theirs, &Options::new(Mode::Flip), None).unwrap();
