@@ -539,6 +539,28 @@ fn only_depth_and_only_colour_compare_one_buffer() {
     std::fs::write(&f, bytes).unwrap();
     let o = run(&e.dir, None, Some(&f), &opts(Depth), None).unwrap();
     assert!(o.pass && o.depth_compared && o.only == Depth, "{o:?}");
+    // Colour alone ignores a depth file given with it, however wrong.
+    let png = dir.join("c.png");
+    let (w, h) = (e.image.width, e.image.height);
+    image::RgbaImage::from_raw(w, h, e.image.rgba.clone())
+        .unwrap()
+        .save(&png)
+        .unwrap();
+    let wrong = dir.join("deeper.f32");
+    let bytes: Vec<u8> = deeper.depth.iter().flat_map(|z| z.to_le_bytes()).collect();
+    std::fs::write(&wrong, bytes).unwrap();
+    let o = run(&e.dir, Some(&png), Some(&wrong), &opts(Colour), None).unwrap();
+    assert!(o.pass && !o.depth_compared && o.only == Colour, "{o:?}");
+    assert!(
+        !run(&e.dir, Some(&png), Some(&wrong), &opts(Both), None)
+            .unwrap()
+            .pass
+    );
+    // Not even read: three bytes are no depth buffer.
+    std::fs::write(&wrong, [0u8; 3]).unwrap();
+    let o = run(&e.dir, Some(&png), Some(&wrong), &opts(Colour), None).unwrap();
+    assert!(o.pass && !o.depth_compared, "{o:?}");
+    assert!(run(&e.dir, Some(&png), Some(&wrong), &opts(Both), None).is_err());
     let err = run(&e.dir, None, Some(&f), &opts(Both), None)
         .unwrap_err()
         .to_string();
