@@ -930,15 +930,6 @@ fn the_reach_holds_a_move_within_the_square_and_not_beyond() {
     for bits in [4, 8] {
         let s = 0.5f32.powi(bits as i32) + 1.0 / 256.0;
         let r = reach(e, bits);
-        // The move as a translation of normalised device coordinates
-        // after the view-projection (y is up there, down in the window).
-        let shifted = |dx: f32, dy: f32| {
-            let mut f = e.frame.clone();
-            let ndc = glam::Vec3::new(2.0 * dx / f.width as f32, -2.0 * dy / f.height as f32, 0.0);
-            let vp = glam::Mat4::from_cols_array_2d(&f.uniforms.view_proj);
-            f.uniforms.view_proj = (glam::Mat4::from_translation(ndc) * vp).to_cols_array_2d();
-            crate::render::draw(&f, &Default::default(), &mut Default::default()).0
-        };
         let outside = |img: &Image| {
             let beyond = |a: f32, z: f32| cmp::ulp_distance(a, z) > u64::from(TOLERANCE_DEPTH_ULP);
             (0..img.depth.len())
@@ -959,10 +950,10 @@ fn the_reach_holds_a_move_within_the_square_and_not_beyond() {
             (-0.5 * s, 0.0),
         ];
         for (dx, dy) in inside {
-            assert_eq!(outside(&shifted(dx, dy)), 0, "{bits} bits: ({dx}, {dy})");
+            assert_eq!(outside(&moved(e, dx, dy)), 0, "{bits} bits: ({dx}, {dy})");
         }
         for (dx, dy) in [(2.5 * s, 0.0), (0.0, -2.5 * s)] {
-            let n = outside(&shifted(dx, dy));
+            let n = outside(&moved(e, dx, dy));
             eprintln!("{bits} bits: shifted ({dx}, {dy}): {n} px outside the reach");
             assert!(n > 0, "{bits} bits: ({dx}, {dy})");
         }
