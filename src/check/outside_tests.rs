@@ -691,18 +691,15 @@ fn a_failing_comparison_lists_its_pixels_and_draws_them() {
     theirs.depth[far] *= 0.5;
     theirs.depth[deep] = f32::from_bits(theirs.depth[deep].to_bits() + 1);
     let nearest = |x: usize, y: usize| {
-        raster
-            .tris
-            .iter()
-            .filter(|t| {
+        nearest_of(
+            raster.tris.iter().filter(|t| {
                 let [x0, y0, x1, y1] = t.bbox.map(|v| v as f64);
                 let (x, y) = (x as f64, y as f64);
                 (x0 - 1.0..=x1 + 1.0).contains(&x) && (y0 - 1.0..=y1 + 1.0).contains(&y)
-            })
-            .flat_map(|t| cmp::edge_ends(&t.edges))
-            .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
-            .filter(|d| d.is_finite())
-            .min_by(f64::total_cmp)
+            }),
+            x,
+            y,
+        )
     };
     let dir = scratch("failing-pixels");
     let run = |mode: Mode| {
@@ -837,6 +834,21 @@ fn images_of_another_size_or_not_whole_are_refused() {
 /// fixed-point unit by which two triangles' copies of a shared edge may
 /// differ (2^-8 px of snapping, at most 10^-6 px between the copies,
 /// `nearest_edge`'s comment): 10^-5 px here.
+/// The distance from pixel (x, y)'s centre to the nearest edge of any of
+/// `tris`, over every edge they have and with no box test: what the tests
+/// check `nearest_edge` against.
+fn nearest_of<'a>(
+    tris: impl IntoIterator<Item = &'a crate::raster::Tri>,
+    x: usize,
+    y: usize,
+) -> Option<f64> {
+    tris.into_iter()
+        .flat_map(|t| cmp::edge_ends(&t.edges))
+        .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
+        .filter(|d| d.is_finite())
+        .min_by(f64::total_cmp)
+}
+
 #[test]
 fn the_nearest_edge_is_the_nearest_of_every_triangle() {
     let e = small();
@@ -845,13 +857,7 @@ fn the_nearest_edge_is_the_nearest_of_every_triangle() {
     let (mut some, mut near, mut none) = (0, 0, 0);
     for y in 0..h {
         for x in 0..w {
-            let all = r
-                .tris
-                .iter()
-                .flat_map(|t| cmp::edge_ends(&t.edges))
-                .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
-                .filter(|d| d.is_finite())
-                .min_by(f64::total_cmp);
+            let all = nearest_of(&r.tris, x, y);
             match (nearest_edge(&r, x, y), all) {
                 (Some(d), Some(all)) => {
                     some += 1;
@@ -901,12 +907,12 @@ fn a_lone_triangle_is_found_one_pixel_past_its_box() {
         .chain((y0..=y1).flat_map(|y| [(x0 - 1, y), (x1 + 1, y)]));
     let mut seen = 0;
     for (x, y) in ring {
-        let own = cmp::edge_ends(&tri.edges)
-            .into_iter()
-            .map(|[p, q]| cmp::segment_distance([x as f64, y as f64], p, q))
-            .filter(|d| d.is_finite())
-            .min_by(f64::total_cmp);
-        assert_eq!(nearest_edge(&r, x as usize, y as usize), own, "({x}, {y})");
+        let (x, y) = (x as usize, y as usize);
+        assert_eq!(
+            nearest_edge(&r, x, y),
+            nearest_of([&tri], x, y),
+            "({x}, {y})"
+        );
         seen += 1;
     }
     // Two pixels past the box: no box holds it.
