@@ -287,11 +287,10 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     b[8] = 1;
     fails(
         &b,
-        &format!(
-            "pack version 1; this build reads version {} (pack the map again",
-            terraclip::pack::file::VERSION
-        ),
+        "pack version 1; this build reads versions 3 to 4 (pack the map again",
     );
+    b[8] = 5;
+    fails(&b, "pack version 5; this build reads versions 3 to 4");
     // The first tile's length lies: past the end of the file, or short.
     let mut b = good.clone();
     b[index + 8..index + 12].copy_from_slice(&u32::MAX.to_le_bytes());

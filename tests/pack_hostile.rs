@@ -12,7 +12,7 @@ use common::packs::{mapped_levels, Parts};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use terraclip::pack::{file, Packed, Predictor};
+use terraclip::pack::{file, Coder, Packed, Predictor};
 
 fn dir() -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pack-hostile");
@@ -23,9 +23,14 @@ fn dir() -> PathBuf {
 /// A lossy pack of a 40 × 30 procedural map in 16² tiles: level 0 has
 /// 3 × 2 tiles, the last column 8 samples wide.
 fn seed() -> Parts {
+    seed_coded(Coder::Ratio)
+}
+
+/// [`seed`] with the tiles coded by `coder`.
+fn seed_coded(coder: Coder) -> Parts {
     let map = common::terrain(9, 40, 30);
     let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
-    let (packed, _) = Packed::encode_with(&levels, 1.0, 16, None, Predictor::Lifting);
+    let (packed, _) = Packed::encode_coded(&levels, 1.0, 16, None, Predictor::Lifting, coder);
     // A name of its own: the tests run at once, in one folder.
     static SEEDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let k = SEEDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -276,4 +281,50 @@ fn a_tile_that_decodes_outside_its_level_range_is_an_error() {
         "outside the level's range",
         false,
     );
+}
+
+#[test]
+fn a_fast_tile_whose_zstd_frame_claims_terabytes_is_an_error() {
+    // Tile (0, 0) of level 0 is 16 × 16 with no no-data: its symbols'
+    // frame starts after the 9-byte header and the side stream. Two forged
+    // frames take its place, each with one raw block of a byte: one that
+    // says it holds 2^40 bytes (single segment, so its window is that size
+    // too), which zstd calls corrupt; and one that asks for zstd's largest
+    // window, 2^31 bytes, which one-shot decoding never allocates (it
+    // decodes into the tile's buffer), so its one byte decodes and the
+    // tile's length refuses it. Both are errors naming the tile.
+    let s = seed_coded(Coder::Fast);
+    let tile = &s.tiles[0];
+    assert_eq!(tile[0], 0, "no no-data in the seed's first tile");
+    let side = u32::from_le_bytes(tile[1..5].try_into().unwrap()) as usize;
+    let keep = tile[..9 + side].to_vec();
+    let magic = 0xFD2F_B528u32.to_le_bytes();
+    // A raw block, the last: header 3 bytes LE (last = 1, type 0, size 1),
+    // then its byte.
+    let block = [0b1_001, 0, 0, 7];
+    let mut terabytes = magic.to_vec();
+    terabytes.push(0b1110_0000); // 8-byte content size, single segment
+    terabytes.extend_from_slice(&(1u64 << 40).to_le_bytes());
+    terabytes.extend_from_slice(&block);
+    let mut window = magic.to_vec();
+    window.push(0); // no content size, a window descriptor
+    window.push((31 - 10) << 3); // window log 31, no mantissa
+    window.extend_from_slice(&block);
+    for (name, frame, why) in [
+        ("terabytes", terabytes, "coded symbols broken"),
+        (
+            "window",
+            window,
+            "coded symbols hold 1 bytes, not the tile's 256",
+        ),
+    ] {
+        let mut forged = seed_coded(Coder::Fast);
+        forged.tiles[0] = [&keep[..], &frame[..]].concat();
+        refused(
+            name,
+            &forged.assemble(),
+            &format!("level 0 tile (0, 0): {why}"),
+            false,
+        );
+    }
 }

@@ -109,9 +109,9 @@ pub enum Coder {
     /// roughness): the smaller pack.
     #[default]
     Ratio,
-    /// pcodec (the `pco` crate) on each tile's symbols in coding order,
-    /// with no contexts: bins of residuals decode at hundreds of M
-    /// numbers/s, where ANS decodes one symbol at a time.
+    /// zstd on each tile's symbols in coding order, with no contexts:
+    /// Huffman-coded bytes decode at several hundred M symbols/s, where
+    /// ANS decodes one symbol at a time through one state.
     Fast,
 }
 
@@ -701,6 +701,7 @@ pub(crate) struct Scratch {
     models: Vec<u8>,
     sym: Vec<u16>,
     words: [Vec<u32>; STREAMS],
+    fast: fast::Decoder,
 }
 
 /// Where a decoded tile goes: rows `stride` apart, the tile's first
@@ -741,6 +742,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
         models: mk,
         sym,
         words,
+        fast: fast_dec,
     } = scratch;
     let TileOut {
         data,
@@ -765,7 +767,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
                     ));
                 }
             }
-            fast::symbols(p.coded, n, sym)?;
+            fast::symbols(p.coded, n, fast_dec, sym)?;
             (p.side, Stage::Fast { at: 0 })
         }
     };

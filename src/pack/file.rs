@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! "TCZPACK\0"             8 bytes, the magic
-//! version                 u32 LE (3)
+//! version                 u32 LE (4; 3 is read where ratio-coded)
 //! header length           u32 LE
 //! header CRC-32           u32 LE
 //! header                  JSON: map size, cell size, filter, bound, tile, levels
@@ -26,10 +26,14 @@ use std::path::{Path, PathBuf};
 
 /// The first bytes of every pack.
 pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
-/// The version this build writes and reads: 3 codes each tile's residuals
-/// in two interleaved ANS streams under 14-bit models decoded through
-/// lookup tables (2 had one stream, 1 had 24-bit models).
-pub const VERSION: u32 = 3;
+/// The version this build writes: 4 codes the fast coder's symbols with
+/// zstd. A ratio-coded pack is the same in 3 and 4 (two interleaved ANS
+/// streams under 14-bit models decoded through lookup tables), so this
+/// build reads both; 2 had one stream, 1 had 24-bit models.
+pub const VERSION: u32 = 4;
+/// The oldest version this build reads, and only ratio-coded: 3's fast
+/// coder was pcodec.
+pub const OLDEST: u32 = 3;
 /// Bytes of one index entry.
 const ENTRY: usize = 16;
 
@@ -303,9 +307,9 @@ pub(crate) fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize),
     let u32_at =
         |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let version = u32_at(8);
-    if version != VERSION {
+    if !(OLDEST..=VERSION).contains(&version) {
         return Err(format!(
-            "pack version {version}; this build reads version {VERSION} \
+            "pack version {version}; this build reads versions {OLDEST} to {VERSION} \
              (pack the map again with this build)"
         ));
     }
@@ -319,6 +323,13 @@ pub(crate) fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize),
     let header: Header =
         serde_json::from_slice(json).map_err(|e| format!("header is not valid: {e}"))?;
     check_header(&header)?;
+    if version < 4 && header.coder == Coder::Fast {
+        return Err(format!(
+            "pack version {version} with the fast coder, whose tiles older builds coded with \
+             pcodec; this build codes them with zstd and reads only version {VERSION}'s \
+             (pack the map again with this build)"
+        ));
+    }
     Ok((header, 20 + len))
 }
 
