@@ -899,7 +899,7 @@ pub(crate) fn decode_tile_into<C: Coarse + ?Sized>(
             return Err("coded words left over".into());
         }
     }
-    let extremes = checked_extremes(data, nodata, (stride, ox), rect, [lo, hi])?;
+    let extremes = checked_extremes(data, nodata, (stride, ox), rect, [lo, hi], flags)?;
     // The emptied streams' buffers, for the next tile.
     if let Stage::Ans { ans, .. } = stage {
         *words = ans.map(|a| a.into_compressed().unwrap_or_default());
@@ -919,25 +919,35 @@ fn any_escape(sym: &[u16]) -> bool {
 /// header gives it (the encoder's own reconstruction's least and greatest
 /// valid sample, so the bounds are exact): a tile whose checksum was made
 /// to match damaged bytes is otherwise free to decode to NaN or to any
-/// height. A row with no no-data is checked by its extremes and a NaN
-/// test, loops that vectorise; only a row that fails is searched for the
-/// sample to name.
+/// height. `flags` is the tile's no-data flag: a tile of only no-data is
+/// not read, and one with none is read once a row ([`finite_extremes`]),
+/// without its mask. Only a row that fails is searched for the sample to
+/// name.
 fn checked_extremes(
     data: &[f32],
     nodata: &[bool],
     (stride, ox): (usize, usize),
     (x0, y0, w, h): (usize, usize, usize, usize),
     [lo, hi]: [f32; 2],
+    flags: u8,
 ) -> Result<(f32, f32), String> {
     let (mut min, mut max) = (f32::INFINITY, f32::NEG_INFINITY);
+    if flags == ALL_NODATA {
+        return Ok((min, max));
+    }
     for r in 0..h {
         let row = r * stride + ox..r * stride + ox + w;
         let (d, nd) = (&data[row.clone()], &nodata[row]);
-        let (a, b) = crate::pyramid::range_of(d, nd);
-        let nan = d
-            .iter()
-            .zip(nd)
-            .fold(false, |acc, (&v, &n)| acc | (v.is_nan() & !n));
+        let (a, b, nan) = if flags == MIXED {
+            let (a, b) = crate::pyramid::range_of(d, nd);
+            let nan = d
+                .iter()
+                .zip(nd)
+                .fold(false, |acc, (&v, &n)| acc | (v.is_nan() & !n));
+            (a, b, nan)
+        } else {
+            finite_extremes(d)
+        };
         if nan || (a <= b && (a < lo || b > hi)) {
             let i = d
                 .iter()
@@ -955,6 +965,40 @@ fn checked_extremes(
         max = max.max(b);
     }
     Ok((min, max))
+}
+
+/// The least and greatest of `d` and whether any is NaN or infinite, in
+/// one pass of eight independent lanes that vectorises. The extremes are
+/// comparisons and selects (one `minps`/`maxps` each; `f32::min`'s NaN
+/// handling cost three more instructions), which skip a NaN; `v − v` is
+/// +0 (no bits set) for a finite v and NaN otherwise, so OR-ing its bits
+/// catches the NaN. (The mask's fold, the extremes and a NaN test were
+/// three passes a row, an eighth of a fast decode of jacksboro.)
+// `v - v` on purpose: it is not 0 for a NaN or an infinity.
+#[allow(clippy::eq_op)]
+fn finite_extremes(d: &[f32]) -> (f32, f32, bool) {
+    const LANES: usize = 8;
+    let mut lo = [f32::INFINITY; LANES];
+    let mut hi = [f32::NEG_INFINITY; LANES];
+    let mut nan = [0u32; LANES];
+    let chunks = d.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for k in 0..LANES {
+            let v = c[k];
+            lo[k] = if v < lo[k] { v } else { lo[k] };
+            hi[k] = if v > hi[k] { v } else { hi[k] };
+            nan[k] |= (v - v).to_bits();
+        }
+    }
+    for &v in rest {
+        lo[0] = if v < lo[0] { v } else { lo[0] };
+        hi[0] = if v > hi[0] { v } else { hi[0] };
+        nan[0] |= (v - v).to_bits();
+    }
+    let lo = lo.iter().fold(f32::INFINITY, |a, &b| a.min(b));
+    let hi = hi.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+    (lo, hi, nan.iter().any(|&n| n != 0))
 }
 
 /// Where a tile's symbols come from while its phases are decoded.
@@ -1345,6 +1389,29 @@ impl Packed {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every lane and the remainder: the extremes of any length, and a
+    /// NaN or an infinity at any place is seen (the extremes' selects
+    /// alone skip a NaN).
+    #[test]
+    fn finite_extremes_sees_every_place_of_any_row() {
+        for len in 0..=40usize {
+            let d: Vec<f32> = (0..len).map(|i| (i * 7 % 40) as f32 - 10.0).collect();
+            let want = d
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            assert_eq!(finite_extremes(&d), (want.0, want.1, false), "{len}");
+            for at in 0..len {
+                for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                    let mut e = d.clone();
+                    e[at] = bad;
+                    assert!(finite_extremes(&e).2, "{bad} at {at} of {len}");
+                }
+            }
+        }
+    }
 
     /// The raw fallback: where no residual reconstructs a sample within
     /// the bound, its f32 bits are sent whole and come back exact.
