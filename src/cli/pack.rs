@@ -30,9 +30,9 @@ pub struct Args {
     #[arg(long, default_value = "lifting", value_parser = parse_predictor)]
     pub predictor: Predictor,
     /// The tiles' entropy stage: `ratio` (ANS under per-context models,
-    /// the smaller pack) or `fast` (pcodec, which decodes several times
-    /// faster for a larger pack). Both code the same residuals to the same
-    /// bound.
+    /// the smaller pack) or `fast` (zstd, which decodes about twice as
+    /// fast for a pack of about the same size). Both code the same
+    /// residuals to the same bound.
     #[arg(long, default_value = "ratio", value_parser = parse_coder)]
     pub coder: Coder,
     /// Tile side in samples (even, 2..=4096).

@@ -8,10 +8,12 @@
 //! no-data count           u32 LE
 //! no-data mask            MIXED only: one bit a sample, row-major, LSB first
 //! side stream             escapes' values, as the ratio coder's
+//! code width              u8: 2, 4, 8 or 16 bits
 //! symbols                 one zstd frame of the tile's n symbols in coding
 //!                         order, each as its zigzagged residual z (0..=510,
-//!                         the escape 511): n bytes of z's low byte, then n
-//!                         of its high byte only where some z is 256 or more
+//!                         the escape 511): at 2 and 4 bits, 4 and 2 codes
+//!                         a byte, the first in the low bits; at 8, a byte
+//!                         each; at 16, the n low bytes, then the n high
 //! ```
 //!
 //! zstd (the `zstd` crate, bindings to the reference C library) was chosen
@@ -21,8 +23,11 @@
 //! of equal bytes as matches) for a size within 1.5 % either way
 //! (docs/explanation/pack-codecs.md). Writing no entropy coder of our own
 //! keeps a fuzzed, widely deployed decoder between a hostile file and the
-//! heights. Zigzag keeps the common small residuals in the low byte, so a
-//! smooth tile's high bytes are all zero and are not written at all.
+//! heights. Zigzag keeps the common small residuals in small codes, and a
+//! tile takes the narrowest width that holds its largest: Huffman spends at
+//! least a bit a byte, so a smooth tile whose residuals are mostly 0 and
+//! ±1 packs four codes a byte (jacksboro's pack at E = 4 m 6 % smaller and
+//! a procedural map's at 1 m 8 % smaller than a byte a code).
 
 use super::model::{ESCAPE, K, SYMBOLS};
 
@@ -80,14 +85,37 @@ pub(crate) fn encode(
     }
     out.extend_from_slice(side);
     let z: Vec<u16> = sym.iter().map(|&s| zig(s)).collect();
-    let mut planes: Vec<u8> = z.iter().map(|&z| z as u8).collect();
-    if z.iter().any(|&z| z > 0xff) {
-        planes.extend(z.iter().map(|&z| (z >> 8) as u8));
-    }
+    let bits = width(z.iter().fold(0, |m, &z| m.max(z)));
+    let planes: Vec<u8> = match bits {
+        16 => z
+            .iter()
+            .map(|&z| z as u8)
+            .chain(z.iter().map(|&z| (z >> 8) as u8))
+            .collect(),
+        _ => z
+            .chunks(8 / bits as usize)
+            .map(|c| {
+                c.iter()
+                    .enumerate()
+                    .fold(0u8, |b, (j, &z)| b | (z as u8) << (j * bits as usize))
+            })
+            .collect(),
+    };
+    out.push(bits);
     // Compressing a slice in memory fails only on a bug.
     let frame = zstd::bulk::compress(&planes, LEVEL).expect("zstd compresses a slice");
     out.extend_from_slice(&frame);
     out
+}
+
+/// The fewest bits of 2, 4, 8 and 16 that hold codes up to `top`.
+fn width(top: u16) -> u8 {
+    match top {
+        0..=3 => 2,
+        4..=15 => 4,
+        16..=255 => 8,
+        _ => 16,
+    }
 }
 
 /// A fast tile's parts, checked against its `n` samples.
@@ -148,38 +176,60 @@ thread_local! {
         const { std::cell::RefCell::new(None) };
 }
 
-/// Decodes the `n` symbols of `coded` into `sym`, with `dec`'s buffers.
-/// The frame must hold exactly n or 2n bytes. zstd decodes in one shot
-/// into a buffer of 2n that the tile's rectangle sizes, never the frame's
-/// header: a frame that says it is larger is zstd's error, and one-shot
-/// decoding keeps no window of its own, so a forged window size allocates
-/// nothing either.
+/// Decodes the `n` symbols of `coded` (their width, then the frame) into
+/// `sym`, with `dec`'s buffers. The frame must hold exactly the bytes of n
+/// codes of that width. zstd decodes in one shot into a buffer of that
+/// length, which the tile's rectangle sizes, never the frame's header: a
+/// frame that says it is larger is zstd's error, and one-shot decoding
+/// keeps no window of its own, so a forged window size allocates nothing
+/// either.
 pub(crate) fn symbols(
     coded: &[u8],
     n: usize,
     dec: &mut Decoder,
     sym: &mut Vec<u16>,
 ) -> Result<(), String> {
+    let (&bits, frame) = coded
+        .split_first()
+        .ok_or("no coded symbols (not even their width)")?;
+    let len = match bits {
+        2 => n.div_ceil(4),
+        4 => n.div_ceil(2),
+        8 => n,
+        16 => 2 * n,
+        _ => {
+            return Err(format!(
+                "symbol codes {bits} bits wide do not exist (2, 4, 8 or 16)"
+            ))
+        }
+    };
     let broken = |e: std::io::Error| format!("coded symbols broken: {e}");
     // zstd writes every byte it reports, so the buffer is only sized.
-    dec.planes.resize(2 * n, 0);
+    dec.planes.resize(len, 0);
     let got = ZSTD.with_borrow_mut(|z| {
         let zstd = match z {
             Some(z) => z,
             none => none.insert(zstd::bulk::Decompressor::new()?),
         };
-        zstd.decompress_to_buffer(coded, &mut dec.planes[..])
+        zstd.decompress_to_buffer(frame, &mut dec.planes[..])
     });
     let got = got.map_err(broken)?;
-    let (lo, hi) = dec.planes.split_at(n);
+    if got != len {
+        return Err(format!(
+            "coded symbols hold {got} bytes, not the {len} of {n} {bits}-bit codes"
+        ));
+    }
     sym.resize(n, 0);
-    match got {
-        _ if got == n => {
-            for (s, &l) in sym.iter_mut().zip(lo) {
+    match bits {
+        2 => unpack::<4>(&dec.planes, sym),
+        4 => unpack::<2>(&dec.planes, sym),
+        8 => {
+            for (s, &l) in sym.iter_mut().zip(&dec.planes) {
                 *s = unzig(u16::from(l));
             }
         }
-        _ if got == 2 * n => {
+        _ => {
+            let (lo, hi) = dec.planes.split_at(n);
             for ((s, &l), &h) in sym.iter_mut().zip(lo).zip(hi) {
                 *s = unzig(u16::from(l) | u16::from(h) << 8);
             }
@@ -195,13 +245,29 @@ pub(crate) fn symbols(
                 ));
             }
         }
-        _ => {
-            return Err(format!(
-                "coded symbols hold {got} bytes, not the tile's {n} samples (or twice that)"
-            ))
-        }
     }
     Ok(())
+}
+
+/// The symbols of `PER` codes a byte (each 8 / `PER` bits, the first in
+/// the low bits) in `bytes` into `sym`; a last byte's unused codes are
+/// ignored.
+fn unpack<const PER: usize>(bytes: &[u8], sym: &mut [u16]) {
+    let bits = 8 / PER;
+    let mask = (1u8 << bits) - 1;
+    let full = sym.len() / PER;
+    let mut whole = sym.chunks_exact_mut(PER);
+    for (c, &b) in (&mut whole).zip(bytes) {
+        for (j, s) in c.iter_mut().enumerate() {
+            *s = unzig(u16::from(b >> (j * bits) & mask));
+        }
+    }
+    let rest = whole.into_remainder();
+    if let Some(&b) = bytes.get(full) {
+        for (j, s) in rest.iter_mut().enumerate() {
+            *s = unzig(u16::from(b >> (j * bits) & mask));
+        }
+    }
 }
 
 /// Gives `put` each of the first `n` no-data flags of `mask` with its
@@ -254,20 +320,35 @@ mod tests {
     }
 
     #[test]
-    fn only_a_tile_with_a_large_code_writes_the_high_bytes() {
-        let n = 500;
+    fn a_tile_takes_the_narrowest_width_of_its_codes_at_any_length() {
         let k = K as usize;
-        let small: Vec<usize> = (0..n).map(|i| k - 128 + i % 256).collect();
-        let mut large = small.clone();
-        large[99] = k + 128;
-        for (sym, planes) in [(&small, n), (&large, 2 * n)] {
-            let bytes = encode(0, 0, &[false; 500], &[], sym);
-            let p = parts(&bytes, n).unwrap();
-            let raw = zstd::bulk::decompress(p.coded, 4 * n).unwrap();
-            assert_eq!(raw.len(), planes);
-            let got = decode(p.coded, n).unwrap();
-            assert_eq!(got.iter().map(|&s| s as usize).collect::<Vec<_>>(), *sym);
+        // Symbols whose largest code is 3, 15, 255 and 256: each a width.
+        for (top, bits, per) in [(k - 2, 2, 4.0), (k - 8, 4, 2.0), (k - 128, 8, 1.0)]
+            .into_iter()
+            .chain([(k + 128, 16, 0.5)])
+        {
+            for n in 1..=11 {
+                // Every code up to the top, the top last.
+                let mut sym: Vec<usize> = (0..n - 1).map(|i| k - i % 2).collect();
+                sym.push(top);
+                let bytes = encode(0, 0, &vec![false; n], &[], &sym);
+                let p = parts(&bytes, n).unwrap();
+                assert_eq!(p.coded[0], bits, "{n} samples");
+                let raw = zstd::bulk::decompress(&p.coded[1..], 4 * n).unwrap();
+                assert_eq!(raw.len(), (n as f64 / per).ceil() as usize);
+                let got = decode(p.coded, n).unwrap();
+                assert_eq!(
+                    got.iter().map(|&s| s as usize).collect::<Vec<_>>(),
+                    sym,
+                    "{bits} bits, {n} samples"
+                );
+            }
         }
+        assert_eq!([width(0), width(3), width(4), width(15)], [2, 2, 4, 4]);
+        assert_eq!(
+            [width(16), width(255), width(256), width(511)],
+            [8, 8, 16, 16]
+        );
     }
 
     #[test]
@@ -289,21 +370,23 @@ mod tests {
             let e = parts(&b, n).err().expect("refused");
             assert!(e.contains("do not fit"), "{e}");
         }
-        // The whole rest as the side stream leaves no symbols: nothing
-        // decoded, an error, not a panic.
+        // The whole rest as the side stream leaves no symbols: an error,
+        // not a panic.
         let mut b = bytes.clone();
         b[1..5].copy_from_slice(&(room as u32).to_le_bytes());
         let p = parts(&b, n).unwrap();
         let e = decode(p.coded, n).unwrap_err();
-        assert!(e.contains("hold 0 bytes, not the tile's 40 samples"), "{e}");
+        assert!(e.contains("not even their width"), "{e}");
     }
 
     #[test]
     fn codes_past_the_escape_wrong_lengths_and_bytes_after_the_frame_are_errors() {
         let n = 300;
-        let good: Vec<usize> = (0..n).map(|i| 250 + i % 11).collect();
+        // Residuals −15..=15: codes up to 30, a byte each.
+        let good: Vec<usize> = (0..n).map(|i| 240 + i % 31).collect();
         let bytes = encode(0, 0, &[false; 300], &[], &good);
         let p = parts(&bytes, n).unwrap();
+        assert_eq!(p.coded[0], 8);
         decode(p.coded, n).unwrap();
         // One byte more after the frame.
         let mut longer = p.coded.to_vec();
@@ -311,27 +394,38 @@ mod tests {
         let e = decode(&longer, n).unwrap_err();
         assert!(e.contains("coded symbols broken"), "{e}");
         // Fewer or more samples than coded: the frame is not the length
-        // the tile's rectangle says.
-        let e = decode(p.coded, n - 1).unwrap_err();
+        // the tile's rectangle says; one larger than the buffer is zstd's
+        // error.
+        let e = decode(p.coded, n + 1).unwrap_err();
         assert!(
-            e.contains("hold 300 bytes, not the tile's 299 samples"),
+            e.contains("hold 300 bytes, not the 301 of 301 8-bit codes"),
             "{e}"
         );
-        let e = decode(p.coded, n + 1).unwrap_err();
-        assert!(e.contains("hold 300 bytes, not the tile's 301"), "{e}");
-        // Half the samples reads the frame as two planes, whose "high
-        // bytes" (the second half's codes, up to 10) make codes past the
-        // escape; a frame longer than
-        // two planes does not fit the buffer, which zstd refuses.
-        let e = decode(p.coded, n / 2).unwrap_err();
-        assert!(e.contains("does not exist"), "{e}");
-        let e = decode(p.coded, n / 2 - 1).unwrap_err();
+        let e = decode(p.coded, n - 1).unwrap_err();
         assert!(e.contains("coded symbols broken"), "{e}");
+        // Another width read from the same frame: 4-bit codes want 150
+        // bytes, 16-bit ones 600.
+        for (bits, want) in [
+            (4u8, "not the 150 of 300 4-bit"),
+            (16, "not the 600 of 300 16-bit"),
+        ] {
+            let mut other = p.coded.to_vec();
+            other[0] = bits;
+            let e = decode(&other, n).unwrap_err();
+            assert!(e.contains(want) || e.contains("broken"), "{bits}: {e}");
+        }
+        // A width that does not exist, and no width at all.
+        let mut other = p.coded.to_vec();
+        other[0] = 3;
+        let e = decode(&other, n).unwrap_err();
+        assert!(e.contains("codes 3 bits wide do not exist"), "{e}");
+        let e = decode(&[], n).unwrap_err();
+        assert!(e.contains("not even their width"), "{e}");
         // A code past the escape (a high byte of 2), which no encoder
         // writes: a frame made by hand.
         let mut planes = vec![0u8; 2 * n];
         planes[n + 7] = 2;
-        let forged = zstd::bulk::compress(&planes, 1).unwrap();
+        let forged = [&[16u8][..], &zstd::bulk::compress(&planes, 1).unwrap()].concat();
         let e = decode(&forged, n).unwrap_err();
         assert!(
             e.contains("symbol code 512 at sample 7 does not exist"),
