@@ -434,6 +434,28 @@ mod tests {
     }
 
     #[test]
+    fn a_tile_cut_in_its_header_or_mask_is_an_error_and_its_count_reads_back() {
+        let n = 40;
+        let nodata: Vec<bool> = (0..n).map(|i| i % 3 == 0).collect();
+        // A count whose four bytes differ, so each byte's place is read.
+        let count = 0x0403_0201;
+        let bytes = encode(MIXED, count, &nodata, &[9, 9], &[255; 40]);
+        let p = parts(&bytes, n).unwrap();
+        assert_eq!((p.count, p.mask.len(), p.side), (count, 5, &[9u8, 9][..]));
+        // Cut inside the header: shorter than it, never a read past it.
+        for len in 0..HEADER {
+            let e = parts(&bytes[..len], n).err().expect("refused");
+            assert!(e.contains("shorter than the 9-byte header"), "{len}: {e}");
+        }
+        // Cut inside the mask (the side stream's length says 2): the
+        // mask does not fit, never a slice past the end.
+        for len in HEADER..HEADER + 5 {
+            let e = parts(&bytes[..len], n).err().expect("refused");
+            assert!(e.contains("no-data mask of 5 bytes"), "{len}: {e}");
+        }
+    }
+
+    #[test]
     fn the_mask_gives_each_flag_and_counts_them() {
         let n = 21;
         let nodata: Vec<bool> = (0..n).map(|i| i % 4 == 1 || i == 20).collect();
