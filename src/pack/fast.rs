@@ -423,7 +423,9 @@ mod tests {
         assert!(e.contains("not even their width"), "{e}");
         // A code past the escape (a high byte of 2), which no encoder
         // writes: a frame made by hand.
+        // Sample 3's high byte of 1 (code 256) is a code that exists.
         let mut planes = vec![0u8; 2 * n];
+        planes[n + 3] = 1;
         planes[n + 7] = 2;
         let forged = [&[16u8][..], &zstd::bulk::compress(&planes, 1).unwrap()].concat();
         let e = decode(&forged, n).unwrap_err();
