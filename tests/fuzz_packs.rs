@@ -28,7 +28,7 @@ use std::panic::catch_unwind;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use terraclip::pack::Coder::{Fast, Ratio};
-use terraclip::pack::Predictor::{Lifting, Upsampled};
+use terraclip::pack::Predictor::{Fitted, Lifting, Upsampled};
 use terraclip::pack::{file, Coder, Lattice, Packed, Predictor};
 use terraclip::pyramid::{Pyramid, PyramidLevel};
 use terraclip::terrain::Heightmap;
@@ -72,6 +72,8 @@ fn seeds(d: &Path) -> Vec<(&'static str, Parts)> {
         ("fast lifting", pack(d, &map, 1.0, Lifting, Fast)),
         ("fast upsampled", pack(d, &map, 1.0, Upsampled, Fast)),
         ("fast no-data", pack(d, &holes, 0.5, Lifting, Fast)),
+        ("fitted", pack(d, &map, 1.0, Fitted, Ratio)),
+        ("fast fitted no-data", pack(d, &holes, 0.5, Fitted, Fast)),
     ]
 }
 
@@ -158,7 +160,7 @@ const CASES: usize = 1000;
 
 /// Per seed: cases reaching the header, the index, the first tile, the
 /// first predicted level, and loading whole.
-const EXPECTED: [(&str, [usize; 5]); 8] = [
+const EXPECTED: [(&str, [usize; 5]); 10] = [
     ("lifting", [663, 566, 429, 321, 33]),
     ("upsampled", [691, 565, 430, 334, 36]),
     ("lattice", [663, 565, 454, 348, 64]),
@@ -167,6 +169,8 @@ const EXPECTED: [(&str, [usize; 5]); 8] = [
     ("fast lifting", [659, 562, 435, 335, 50]),
     ("fast upsampled", [691, 595, 448, 351, 58]),
     ("fast no-data", [650, 551, 431, 351, 35]),
+    ("fitted", [651, 549, 422, 321, 30]),
+    ("fast fitted no-data", [694, 611, 487, 392, 44]),
 ];
 
 #[test]
@@ -241,6 +245,6 @@ fn packs_with_their_checksums_made_right_reach_every_stage() {
         failures.len(),
         failures[0]
     );
-    assert_eq!(through_cli, 8 * CASES.div_ceil(25));
+    assert_eq!(through_cli, 10 * CASES.div_ceil(25));
     assert_eq!(got, EXPECTED, "cases reaching each stage, per seed");
 }

@@ -844,11 +844,40 @@ fn pack_writes_a_pack_info_reads_and_bad_ones_are_clean_errors() {
     );
     assert!(v["max_error_seen"].as_f64().unwrap() <= 1.0);
     assert!(v["ratio"].as_f64().unwrap() > 6.0, "{v}");
+    // The ratio coder's default predictor is the fitted one.
+    assert_eq!(
+        (&v["coder"], &v["predictor"]),
+        (&"ratio".into(), &"fitted".into())
+    );
     let (code, stdout, err) = cli(&["info", o, "--json"]);
     assert_eq!(code, 0, "{err}");
     let i: serde_json::Value = serde_json::from_str(&stdout).unwrap();
     assert_eq!(i["bytes"], v["bytes"]);
     assert_eq!(i["format"], "tcz");
+    assert_eq!(i["predictor"], "fitted");
+    // It is smaller than lifting's pack of the same map.
+    let lifting = tmp("j-lifting.tcz");
+    let args = [
+        "pack",
+        jacksboro,
+        "-o",
+        lifting.to_str().unwrap(),
+        "--max-error",
+        "1",
+    ];
+    let (code, stdout, err) = cli(&[&args[..], &["--predictor", "lifting", "--json"]].concat());
+    assert_eq!(code, 0, "{err}");
+    let l: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(l["predictor"], "lifting");
+    assert!(
+        v["bytes"].as_u64() < l["bytes"].as_u64(),
+        "fitted {} against lifting {}",
+        v["bytes"],
+        l["bytes"]
+    );
+    let (code, _, err) = cli(&[&args[..], &["--predictor", "guessed"]].concat());
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("(fitted, lifting or upsampled)"), "{err}");
     // A cut pack: exit 1, the file named, no panic; the good one is kept
     // when a second pack fails before writing.
     let bytes = std::fs::read(&out).unwrap();

@@ -63,8 +63,11 @@ fn every_sample_of_every_level_is_within_the_bound() {
     let map = common::terrain(3, 301, 157);
     let src = levels_of(&map);
     let mut sizes = vec![];
-    for e in [0.5, 1.0, 4.0] {
-        let (packed, recon) = Packed::encode(&src, e, 64, None);
+    for (e, predictor) in [0.5, 1.0, 4.0]
+        .into_iter()
+        .flat_map(|e| [(e, Predictor::Lifting), (e, Predictor::Fitted)])
+    {
+        let (packed, recon) = Packed::encode_with(&src, e, 64, None, predictor);
         let decoded = packed.decode().unwrap();
         // The decoder gives exactly what the encoder predicted from.
         assert!(same_bits(&recon, &decoded));
@@ -76,9 +79,14 @@ fn every_sample_of_every_level_is_within_the_bound() {
     }
     // The coder is deterministic, so its sizes are exact figures: a change
     // to the predictor, the quantiser or the models moves them (a wrong
-    // four-point weight still decodes within the bound, and only this sees
-    // it).
-    assert_eq!(sizes, [31711, 24189, 11673]);
+    // four-point weight, or a fitted feature that the encoder and decoder
+    // both compute wrong, still decodes within the bound, and only this
+    // sees it). Lifting then fitted, at each E: the fitted weights code
+    // smaller.
+    assert_eq!(sizes, [31711, 29210, 24189, 21981, 11673, 9932]);
+    for pair in sizes.chunks(2) {
+        assert!(pair[1] < pair[0], "{pair:?}");
+    }
 }
 
 #[test]
@@ -96,10 +104,21 @@ fn a_lossless_pack_gives_the_same_bits() {
     assert!(packed.levels[1..].iter().all(|l| l.quant == Quant::Bits));
     let decoded = packed.decode().unwrap();
     assert!(same_bits(&src, &decoded));
+    // Fitted weights predict lossless levels too, in fewer bytes.
+    let (fitted, _) = Packed::encode_with(&src, 0.0, 64, Some(lattice), Predictor::Fitted);
+    assert!(same_bits(&src, &fitted.decode().unwrap()));
+    assert!(
+        fitted.coded_bytes() < packed.coded_bytes(),
+        "{} fitted against {} lifting",
+        fitted.coded_bytes(),
+        packed.coded_bytes()
+    );
     // Without the lattice, level 0 is coded as bit patterns: still exact.
-    let (packed, _) = Packed::encode(&src[..2], 0.0, 64, None);
-    let decoded = packed.decode().unwrap();
-    assert!(same_bits(&src[..1], &decoded[..1]));
+    for predictor in [Predictor::Lifting, Predictor::Fitted] {
+        let (packed, _) = Packed::encode_with(&src[..2], 0.0, 64, None, predictor);
+        let decoded = packed.decode().unwrap();
+        assert!(same_bits(&src[..1], &decoded[..1]), "{predictor:?}");
+    }
 }
 
 /// Both predictors: the lifting one's stencils stay inside the tile, the
@@ -108,7 +127,7 @@ fn a_lossless_pack_gives_the_same_bits() {
 fn a_tile_decoded_alone_equals_its_part_of_the_level() {
     let map = common::terrain(8, 203, 130);
     let src = levels_of(&map);
-    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+    for predictor in [Predictor::Lifting, Predictor::Fitted, Predictor::Upsampled] {
         let (packed, recon) = Packed::encode_with(&src, 1.0, 16, None, predictor);
         tiles_alone_equal_levels(&packed, &recon);
     }
@@ -152,7 +171,7 @@ fn the_no_data_mask_is_coded() {
         .collect();
     let map = Heightmap::from_values(70, 50, values, None, [1.0; 2], "test").unwrap();
     let src = levels_of(&map);
-    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+    for predictor in [Predictor::Lifting, Predictor::Fitted, Predictor::Upsampled] {
         let (packed, _) = Packed::encode_with(&src, 1.0, 8, None, predictor);
         let decoded = packed.decode().unwrap();
         assert_eq!(decoded[0].nodata, mask);
@@ -247,7 +266,7 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     use terraclip::pack::file;
     let map = common::terrain(6, 90, 70);
     // Every cut of a pack of each predictor is an error.
-    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+    for predictor in [Predictor::Lifting, Predictor::Fitted, Predictor::Upsampled] {
         let (packed, _) = Packed::encode_with(&levels_of(&map), 1.0, 32, None, predictor);
         let path = tmp(&format!("cut-{}.tcz", predictor.name()));
         file::write(&path, &packed, [1.0; 2], "box", "test").unwrap();
@@ -287,10 +306,10 @@ fn a_damaged_pack_file_is_an_error_that_names_it_and_the_tile() {
     b[8] = 1;
     fails(
         &b,
-        "pack version 1; this build reads versions 3 to 4 (pack the map again",
+        "pack version 1; this build reads versions 3 to 5 (pack the map again",
     );
-    b[8] = 5;
-    fails(&b, "pack version 5; this build reads versions 3 to 4");
+    b[8] = 6;
+    fails(&b, "pack version 6; this build reads versions 3 to 5");
     // The first tile's length lies: past the end of the file, or short.
     let mut b = good.clone();
     b[index + 8..index + 12].copy_from_slice(&u32::MAX.to_le_bytes());
@@ -435,12 +454,18 @@ fn a_lossless_level_written_back_reads_as_the_map() {
 }
 
 /// The file the in-memory path writes for `map`: its whole pyramid,
-/// [`Packed::encode`], [`file::write`].
-fn in_memory_pack(map: &Heightmap, e: f64, tile: usize, source: &str) -> Vec<u8> {
+/// [`Packed::encode_with`] `predictor`, [`file::write`].
+fn in_memory_pack(
+    map: &Heightmap,
+    e: f64,
+    tile: usize,
+    source: &str,
+    predictor: Predictor,
+) -> Vec<u8> {
     use terraclip::pack::file;
     let levels = Pyramid::build(map, Filter::default(), usize::MAX).levels;
-    let (packed, _) = Packed::encode(&levels, e, tile, map.lattice);
-    let path = tmp(&format!("mem-{source}-{e}-{tile}.tcz"));
+    let (packed, _) = Packed::encode_with(&levels, e, tile, map.lattice, predictor);
+    let path = tmp(&format!("mem-{source}-{e}-{tile}-{}.tcz", predictor.name()));
     file::write(
         &path,
         &packed,
@@ -456,15 +481,18 @@ fn in_memory_pack(map: &Heightmap, e: f64, tile: usize, source: &str) -> Vec<u8>
 /// `band_bytes`.
 fn streamed_pack(
     src: &dyn terraclip::terrain::rows::RowSource,
-    e: f64,
-    tile: usize,
+    (e, tile, predictor): (f64, usize, Predictor),
     source: &str,
     band_bytes: usize,
 ) -> Vec<u8> {
     use terraclip::pack::stream;
-    let path = tmp(&format!("stream-{source}-{e}-{tile}-{band_bytes}.tcz"));
+    let path = tmp(&format!(
+        "stream-{source}-{e}-{tile}-{band_bytes}-{}.tcz",
+        predictor.name()
+    ));
     let mut o = stream::Options::new(e, tile, Filter::default(), source);
     o.band_bytes = band_bytes;
+    o.predictor = predictor;
     let mut last = (0, 1);
     let s = stream::pack(src, &path, &o, &mut |d, t| last = (d, t)).unwrap();
     assert_eq!(last.0, last.1, "progress reaches its total");
@@ -550,13 +578,19 @@ fn a_streamed_pack_equals_the_in_memory_pack() {
     use terraclip::terrain::procedural::Procedural;
     use terraclip::terrain::rows::{self, MapRows, ProceduralRows};
     let (map, _) = jacksboro();
-    for (e, tile) in [(0.0, 64), (1.0, 128)] {
-        let want = in_memory_pack(&map, e, tile, "jacksboro");
+    // Fitted weights read two coarse rows each way, lifting one.
+    for (e, tile, p) in [
+        (0.0, 64, Predictor::Lifting),
+        (1.0, 128, Predictor::Lifting),
+        (0.0, 64, Predictor::Fitted),
+        (1.0, 32, Predictor::Fitted),
+    ] {
+        let want = in_memory_pack(&map, e, tile, "jacksboro", p);
         for band in [usize::MAX / 8, 20_000] {
-            let got = streamed_pack(&MapRows(map.clone()), e, tile, "jacksboro", band);
+            let got = streamed_pack(&MapRows(map.clone()), (e, tile, p), "jacksboro", band);
             assert!(
                 got == want,
-                "jacksboro E = {e}, tile {tile}, bands of {band} bytes"
+                "jacksboro E = {e}, tile {tile}, {p:?}, bands of {band} bytes"
             );
         }
     }
@@ -600,22 +634,25 @@ fn a_streamed_pack_equals_the_in_memory_pack() {
         let map = Heightmap::load(path).unwrap();
         assert!(map.nodata_count() > 0);
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
-        for e in [0.0, 0.5] {
-            let want = in_memory_pack(&map, e, 32, &name);
+        for (e, p) in [
+            (0.0, Predictor::Lifting),
+            (0.5, Predictor::Lifting),
+            (0.5, Predictor::Fitted),
+        ] {
+            let want = in_memory_pack(&map, e, 32, &name, p);
             let src = rows::open(path).unwrap();
             for band in [usize::MAX / 8, 3_000] {
-                let got = streamed_pack(src.as_ref(), e, 32, &name, band);
-                assert!(got == want, "{name} E = {e}, bands of {band} bytes");
+                let got = streamed_pack(src.as_ref(), (e, 32, p), &name, band);
+                assert!(got == want, "{name} E = {e}, {p:?}, bands of {band} bytes");
             }
         }
     }
     let p = Procedural::new(7, 190, 77);
     let map = p.generate().unwrap();
-    let want = in_memory_pack(&map, 1.0, 32, "procedural");
+    let want = in_memory_pack(&map, 1.0, 32, "procedural", Predictor::Lifting);
     let got = streamed_pack(
         &ProceduralRows::new(p).unwrap(),
-        1.0,
-        32,
+        (1.0, 32, Predictor::Lifting),
         "procedural",
         5_000,
     );
@@ -772,7 +809,7 @@ fn a_window_decoded_alone_equals_the_whole_decode() {
     use std::sync::Arc;
     use terraclip::pack::{file, reader::PackReader};
     let (map, lattice) = jacksboro();
-    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+    for predictor in [Predictor::Lifting, Predictor::Fitted, Predictor::Upsampled] {
         let (packed, _) = Packed::encode_with(&levels_of(&map), 0.5, 32, Some(lattice), predictor);
         let path = tmp(&format!("window-{}.tcz", predictor.name()));
         file::write(&path, &packed, map.cell_size, "sinc-blackman:11", "j").unwrap();
@@ -1010,7 +1047,7 @@ fn extreme_heights_and_spikes_keep_the_bound_and_come_back_exact() {
         .collect();
     let map = Heightmap::from_values(w, h, values, None, [10.0; 2], "test").unwrap();
     let src = levels_of(&map);
-    for predictor in [Predictor::Lifting, Predictor::Upsampled] {
+    for predictor in [Predictor::Lifting, Predictor::Fitted, Predictor::Upsampled] {
         let (packed, recon) = Packed::encode_with(&src, 0.01, 16, None, predictor);
         let decoded = packed.decode().unwrap();
         assert!(

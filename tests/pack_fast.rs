@@ -45,8 +45,10 @@ fn a_fast_pack_decodes_to_the_ratio_packs_heights_within_the_bound() {
     let j = jacksboro();
     let procedural = common::terrain(5, 150, 110);
     let holes = common::packs::holes();
-    let cases: [(&str, &Heightmap, f64, Predictor, usize); 6] = [
+    let cases: [(&str, &Heightmap, f64, Predictor, usize); 8] = [
         ("jacksboro lifting E=1", &j, 1.0, Predictor::Lifting, 64),
+        ("jacksboro fitted E=1", &j, 1.0, Predictor::Fitted, 64),
+        ("holes fitted E=0.5", &holes, 0.5, Predictor::Fitted, 16),
         ("jacksboro upsampled E=1", &j, 1.0, Predictor::Upsampled, 64),
         (
             "jacksboro lossless lattice",

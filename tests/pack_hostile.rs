@@ -28,9 +28,14 @@ fn seed() -> Parts {
 
 /// [`seed`] with the tiles coded by `coder`.
 fn seed_coded(coder: Coder) -> Parts {
+    seed_predicted(coder, Predictor::Lifting)
+}
+
+/// [`seed`] with the tiles coded by `coder` and predicted by `predictor`.
+fn seed_predicted(coder: Coder, predictor: Predictor) -> Parts {
     let map = common::terrain(9, 40, 30);
     let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
-    let (packed, _) = Packed::encode_coded(&levels, 1.0, 16, None, Predictor::Lifting, coder);
+    let (packed, _) = Packed::encode_coded(&levels, 1.0, 16, None, predictor, coder);
     // A name of its own: the tests run at once, in one folder.
     static SEEDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let k = SEEDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -325,4 +330,89 @@ fn a_fast_tile_whose_zstd_frame_claims_terabytes_is_an_error() {
             false,
         );
     }
+}
+
+#[test]
+fn a_fitted_tile_whose_weights_are_out_of_range_or_cut_is_an_error() {
+    // A fast tile: the 9-byte header (flags, the side stream's length, the
+    // no-data count), then the side stream, which in a fitted tile of a
+    // level below the coarsest starts with its 16 weights as zigzag
+    // varints. Tile (0, 0) of level 0 has no no-data.
+    let s = seed_predicted(Coder::Fast, Predictor::Fitted);
+    let tile = &s.tiles[0];
+    assert_eq!(tile[0], 0, "no no-data in the seed's first tile");
+    let side = u32::from_le_bytes(tile[1..5].try_into().unwrap()) as usize;
+    // The first weight's varint.
+    let first = tile[9..].iter().position(|b| b & 0x80 == 0).unwrap() + 1;
+    let with_side = |new_side: &[u8]| {
+        let mut t = tile[..1].to_vec();
+        t.extend_from_slice(&(new_side.len() as u32).to_le_bytes());
+        t.extend_from_slice(&tile[5..9]);
+        t.extend_from_slice(new_side);
+        t.extend_from_slice(&tile[9 + side..]);
+        let mut forged = s.clone();
+        forged.tiles[0] = t;
+        forged.assemble()
+    };
+    // 32768/1024: one past the largest weight (zigzag 65536, three bytes).
+    let mut big = vec![0x80, 0x80, 0x04];
+    big.extend_from_slice(&tile[9 + first..9 + side]);
+    refused(
+        "weight",
+        &with_side(&big),
+        "level 0 tile (0, 0): a prediction weight of 32768/1024, past the largest, 32767/1024",
+        false,
+    );
+    // The side stream cut inside the weights.
+    refused(
+        "weights-cut",
+        &with_side(&tile[9..9 + first]),
+        "level 0 tile (0, 0): coded stream broken in the prediction weights",
+        false,
+    );
+    // The same bytes sound: the seed decodes.
+    let p = dir().join("fitted-sound.tcz");
+    std::fs::write(&p, s.assemble()).unwrap();
+    file::read_levels(&p).unwrap();
+    mapped_levels(&p).unwrap();
+}
+
+#[test]
+fn a_header_that_names_a_predictor_it_cannot_hold_is_an_error() {
+    // Version 4 had no fitted predictor.
+    let mut b = seed_predicted(Coder::Ratio, Predictor::Fitted).assemble();
+    b[8] = 4;
+    refused(
+        "fitted-v4",
+        &b,
+        "pack version 4 names the fitted predictor, which version 5 brought",
+        true,
+    );
+    // Upsampling is said by the levels' quantisation, never by name.
+    let s = seed();
+    let mut h = s.header();
+    h["predictor"] = json!("upsampled");
+    refused(
+        "named-upsampled",
+        &s.with_header(&h).assemble(),
+        "predictor \"upsampled\": the levels' quantisation says so",
+        true,
+    );
+    let up = {
+        let map = common::terrain(9, 40, 30);
+        let levels = terraclip::pyramid::Pyramid::build(&map, Default::default(), 64).levels;
+        let (packed, _) =
+            Packed::encode_coded(&levels, 1.0, 16, None, Predictor::Upsampled, Coder::Ratio);
+        let p = dir().join("up-seed.tcz");
+        file::write(&p, &packed, [10.0; 2], "sinc-blackman:11", "seed").unwrap();
+        Parts::of(&std::fs::read(&p).unwrap())
+    };
+    let mut h = up.header();
+    h["predictor"] = json!("fitted");
+    refused(
+        "fitted-upsampled",
+        &up.with_header(&h).assemble(),
+        "predictor \"fitted\" with upsampled levels",
+        true,
+    );
 }

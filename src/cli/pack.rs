@@ -23,12 +23,15 @@ pub struct Args {
     /// The filter the coarser levels are made with.
     #[arg(long, default_value = "sinc-blackman", value_parser = Filter::parse)]
     pub filter: Filter,
-    /// What the finer levels are predicted from: `lifting` (the smaller
-    /// code) or `upsampled` (LH04's four-point upsampling of the coarser
-    /// level alone, which `[gpu] update = "gpu"` rebuilds on the GPU from
+    /// What the finer levels are predicted from: `fitted` (lifting's
+    /// phases under weights fitted to each tile, the smallest pack, and
+    /// the default with the ratio coder), `lifting` (fixed weights, which
+    /// decodes about twice as fast under the fast coder, and its default)
+    /// or `upsampled` (LH04's four-point upsampling of the coarser level
+    /// alone, which `[gpu] update = "gpu"` rebuilds on the GPU from
     /// uploaded residuals; needs --max-error > 0).
-    #[arg(long, default_value = "lifting", value_parser = parse_predictor)]
-    pub predictor: Predictor,
+    #[arg(long, value_parser = parse_predictor)]
+    pub predictor: Option<Predictor>,
     /// The tiles' entropy stage: `ratio` (ANS under per-context models,
     /// the smaller pack) or `fast` (zstd, which decodes about twice as
     /// fast for a pack of about the same size). Both code the same
@@ -60,7 +63,8 @@ fn parse_coder(s: &str) -> Result<Coder, String> {
 }
 
 fn parse_predictor(s: &str) -> Result<Predictor, String> {
-    Predictor::parse(s).ok_or_else(|| format!("unknown predictor {s:?} (lifting or upsampled)"))
+    Predictor::parse(s)
+        .ok_or_else(|| format!("unknown predictor {s:?} (fitted, lifting or upsampled)"))
 }
 
 /// The input as rows: a scene's terrain, or a heightmap file.
@@ -104,7 +108,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     if !(2..=4096).contains(&a.tile) || a.tile % 2 != 0 {
         anyhow::bail!("--tile must be even and within 2..=4096, got {}", a.tile);
     }
-    if a.predictor == Predictor::Upsampled && a.max_error == 0.0 {
+    // Each coder's default: the fitted weights cost the fast coder half
+    // its decode speed, and the ratio coder a quarter of its.
+    let predictor = a.predictor.unwrap_or(match a.coder {
+        Coder::Ratio => Predictor::Fitted,
+        Coder::Fast => Predictor::Lifting,
+    });
+    if predictor == Predictor::Upsampled && a.max_error == 0.0 {
         anyhow::bail!(
             "--predictor upsampled needs --max-error > 0: its f32 sums p + q·s cannot rebuild every map bit for bit (a lossless pack uses lifting)"
         );
@@ -120,7 +130,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let [w, h] = src.size();
     let source_name = a.input.display().to_string();
     let mut opts = stream::Options::new(a.max_error, a.tile, a.filter, &source_name);
-    opts.predictor = a.predictor;
+    opts.predictor = predictor;
     opts.coder = a.coder;
     opts.band_bytes = (a.band_mib * (1 << 20) as f64) as usize;
     let bar = super::progress(0, "pack");
@@ -141,7 +151,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "output": a.out, "width": w, "height": h,
         "levels": levels, "max_error": a.max_error,
         "max_error_seen": worst, "tile": a.tile, "bytes": bytes,
-        "predictor": a.predictor.name(),
+        "predictor": predictor.name(),
         "coder": a.coder.name(),
         "ratio": ratio, "ms": ms,
         "peak_rss_bytes": terraclip::studies::scaling::peak_rss(),

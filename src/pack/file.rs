@@ -18,7 +18,7 @@
 //! turns a flipped bit into an error that names the tile instead of wrong
 //! heights.
 
-use super::codec::{Coder, Packed, PackedLevel, Quant};
+use super::codec::{Coder, Packed, PackedLevel, Predictor, Quant};
 use crate::error::{write_atomic, Error, Result};
 use crate::pyramid::{Filter, PyramidLevel};
 use serde::{Deserialize, Serialize};
@@ -26,11 +26,14 @@ use std::path::{Path, PathBuf};
 
 /// The first bytes of every pack.
 pub const MAGIC: &[u8; 8] = b"TCZPACK\0";
-/// The version this build writes: 4 codes the fast coder's symbols with
-/// zstd. A ratio-coded pack is the same in 3 and 4 (two interleaved ANS
-/// streams under 14-bit models decoded through lookup tables), so this
-/// build reads both; 2 had one stream, 1 had 24-bit models.
-pub const VERSION: u32 = 4;
+/// The version this build writes: 5 brought the fitted predictor (its
+/// tiles' side streams begin with their weights; a header that names it
+/// is version 5's), 4 coded the fast coder's symbols with zstd. A
+/// ratio-coded pack is the same in 3, 4 and 5 but for that (two
+/// interleaved ANS streams under 14-bit models decoded through lookup
+/// tables), so this build reads all three; 2 had one stream, 1 had 24-bit
+/// models.
+pub const VERSION: u32 = 5;
 /// The oldest version this build reads, and only ratio-coded: 3's fast
 /// coder was pcodec.
 pub const OLDEST: u32 = 3;
@@ -64,6 +67,11 @@ pub struct Header {
     /// headers are as before there was a choice.
     #[serde(default, skip_serializing_if = "Coder::is_default")]
     pub coder: Coder,
+    /// `fitted` where the finer levels' tiles carry fitted prediction
+    /// weights; absent otherwise (lifting, or upsampling, which the levels'
+    /// quantisation says), so other packs' headers are as before.
+    #[serde(default, skip_serializing_if = "Predictor::is_implied")]
+    predictor: Predictor,
     /// What was packed (a file name, or the scene's procedural terrain).
     pub source: String,
     levels: Vec<LevelSpec>,
@@ -84,16 +92,21 @@ impl Header {
         self.levels.get(l).map(|s| s.quant)
     }
     /// What the finer levels are predicted from.
-    pub fn predictor(&self) -> super::Predictor {
+    pub fn predictor(&self) -> Predictor {
         if self
             .levels
             .iter()
             .any(|l| matches!(l.quant, Quant::Upsampled { .. }))
         {
-            super::Predictor::Upsampled
+            Predictor::Upsampled
         } else {
-            super::Predictor::Lifting
+            self.predictor
         }
+    }
+    /// Says what the finer levels are predicted from: only
+    /// [`Predictor::Fitted`] is written; the others read from the levels.
+    pub fn set_predictor(&mut self, p: Predictor) {
+        self.predictor = p;
     }
     /// Level 0's least and greatest valid height, as decoded.
     pub fn range(&self) -> [f32; 2] {
@@ -135,6 +148,7 @@ impl Header {
             max_error,
             tile,
             coder: Coder::Ratio,
+            predictor: Predictor::Lifting,
             source: source.to_string(),
             levels: levels
                 .into_iter()
@@ -192,6 +206,7 @@ pub fn write(
             .map(|l| (l.width, l.height, l.quant, l.range)),
     );
     header.coder = packed.coder;
+    header.set_predictor(packed.predictor);
     let tiles: Vec<&Vec<u8>> = packed.levels.iter().flat_map(|l| &l.tiles).collect();
     let index: Vec<(u32, u32)> = tiles
         .iter()
@@ -323,6 +338,11 @@ pub(crate) fn parse_header(bytes: &[u8]) -> std::result::Result<(Header, usize),
     let header: Header =
         serde_json::from_slice(json).map_err(|e| format!("header is not valid: {e}"))?;
     check_header(&header)?;
+    if version < 5 && header.predictor == Predictor::Fitted {
+        return Err(format!(
+            "pack version {version} names the fitted predictor, which version 5 brought"
+        ));
+    }
     if version < 4 && header.coder == Coder::Fast {
         return Err(format!(
             "pack version {version} with the fast coder, whose tiles older builds coded with \
@@ -506,6 +526,7 @@ fn parse(bytes: &[u8]) -> std::result::Result<(Header, Packed), String> {
     let packed = Packed {
         tile: header.tile,
         coder: header.coder,
+        predictor: header.predictor(),
         max_error: header.max_error,
         levels,
     };
@@ -538,6 +559,23 @@ fn check_header(h: &Header) -> std::result::Result<(), String> {
     }
     if let Some(p) = &h.place {
         p.check().map_err(|r| format!("place: {r}"))?;
+    }
+    let upsampled = h
+        .levels
+        .iter()
+        .any(|l| matches!(l.quant, Quant::Upsampled { .. }));
+    match (h.predictor, upsampled) {
+        (Predictor::Upsampled, _) => {
+            return Err(
+                "predictor \"upsampled\": the levels' quantisation says so, \
+                        and the header names only \"fitted\""
+                    .into(),
+            )
+        }
+        (Predictor::Fitted, true) => {
+            return Err("predictor \"fitted\" with upsampled levels".into())
+        }
+        _ => {}
     }
     for (l, spec) in h.levels.iter().enumerate() {
         let fine = match spec.quant {

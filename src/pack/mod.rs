@@ -6,6 +6,7 @@
 pub mod codec;
 mod fast;
 pub mod file;
+mod fitted;
 pub mod model;
 mod predict;
 pub mod reader;

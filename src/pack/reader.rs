@@ -132,8 +132,9 @@ impl TileSource for PackReader {
         let [cw, ch] = self.header.level_size(l + 1);
         let (x0, y0, tw, th) = tile_rect(w, h, self.header.tile, tx, ty);
         let q = self.quant[l];
-        let cols = coarse_rows(cw, x0, x0 + tw, q);
-        let rows = coarse_rows(ch, y0, y0 + th, q);
+        let fitted = self.header.predictor() == codec::Predictor::Fitted;
+        let cols = coarse_rows(cw, x0, x0 + tw, q, fitted);
+        let rows = coarse_rows(ch, y0, y0 + th, q, fitted);
         Some([
             cols.start as i64,
             rows.start as i64,
@@ -156,8 +157,12 @@ impl TileSource for PackReader {
         let [w, h] = self.header.level_size(l);
         let rect = tile_rect(w, h, self.header.tile, tx, ty);
         let c = (l + 1 < self.header.levels()).then_some(coarse);
-        let (q, coder) = (self.quant[l], self.header.coder);
-        codec::decode_tile(&bytes, c, q, coder, self.header.level_range(l), rect)
+        let q = self.quant[l];
+        let code_as = codec::CodeAs {
+            coder: self.header.coder,
+            fitted: self.header.predictor() == codec::Predictor::Fitted,
+        };
+        codec::decode_tile(&bytes, c, q, code_as, self.header.level_range(l), rect)
             .map_err(|r| format!("{}: {r}", name()))
     }
 }

@@ -19,7 +19,7 @@
 //!    temporary file and a rename. The bytes equal [`super::file::write`]'s
 //!    of [`super::Packed::encode`] on the same map (`tests/pack.rs`).
 
-use super::codec::{self, coarse_rows, encode_tile, tile_rect, Coder, Predictor, Quant};
+use super::codec::{self, coarse_rows, encode_tile, tile_rect, CodeAs, Coder, Predictor, Quant};
 use super::file::{self, Header};
 use crate::error::{temp_path, write_atomic_with, Error, Result};
 use crate::pyramid::downsample::{self, Block, Scratch};
@@ -361,7 +361,10 @@ pub fn pack(
             let rows = ty0 * tile..(ty1 * tile).min(h);
             let band = read(l, rows.clone())?;
             let coarse = match spills.get(l) {
-                Some(c) => Some(c.read(coarse_rows(c.height, rows.start, rows.end, quant))?),
+                Some(c) => {
+                    let fitted = o.predictor == Predictor::Fitted;
+                    Some(c.read(coarse_rows(c.height, rows.start, rows.end, quant, fitted))?)
+                }
                 None => None,
             };
             let view = band.view(w, h);
@@ -374,7 +377,11 @@ pub fn pack(
                 .map(|t| {
                     let rect = tile_rect(w, h, tile, t % nx, ty0 + t / nx);
                     let c = cview.as_ref();
-                    let (bytes, rec) = encode_tile(view, c, quant, o.coder, rect);
+                    let code_as = CodeAs {
+                        coder: o.coder,
+                        fitted: o.predictor == Predictor::Fitted,
+                    };
+                    let (bytes, rec) = encode_tile(view, c, quant, code_as, rect);
                     let (x0, y0, tw, _) = rect;
                     let err = rec
                         .iter()
@@ -429,6 +436,7 @@ pub fn pack(
     );
     header.place = src.place();
     header.coder = o.coder;
+    header.set_predictor(o.predictor);
     let all: Vec<(u32, u32)> = index.iter().flatten().copied().collect();
     let prefix = file::prefix(&header, &all)?;
     let bytes = prefix.len() as u64 + all.iter().map(|t| t.0 as u64).sum::<u64>();
