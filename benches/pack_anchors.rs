@@ -1,6 +1,8 @@
-//! The pack, with each of its coders (`ratio`, the default, and `fast`),
-//! against the strongest peers, side by side in one process on the same
-//! maps and the same pyramid:
+//! The pack, with each of its coders under its default predictor (`ratio`
+//! with `fitted`, what `terraclip pack` writes, and `fast` with
+//! `lifting`) and the ratio coder under `lifting` too, against the
+//! strongest peers, side by side in one process on the same maps and the
+//! same pyramid:
 //!
 //! - SZ3 (error-bounded lossy compression's state of the art, the `sz3`
 //!   crate's bindings to its C++ library) in absolute-error mode at E;
@@ -30,7 +32,10 @@
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
-use terraclip::pack::{Coder, Lattice, Packed, Predictor::Lifting};
+use terraclip::pack::{
+    Coder, Lattice, Packed,
+    Predictor::{Fitted, Lifting},
+};
 use terraclip::pyramid::{Filter, Pyramid, PyramidLevel};
 use terraclip::studies::chart::{Chart, Series};
 use terraclip::terrain::Heightmap;
@@ -235,10 +240,16 @@ fn main() {
                     decode_ms_per_s: dec,
                 })
             };
-            for coder in [Coder::Ratio, Coder::Fast] {
+            // Each coder with its default predictor (what `terraclip pack`
+            // writes), then the ratio coder with lifting's fixed weights.
+            for (coder, predictor, codec) in [
+                (Coder::Ratio, Fitted, "terraclip"),
+                (Coder::Ratio, Lifting, "terraclip lifting"),
+                (Coder::Fast, Lifting, "terraclip fast"),
+            ] {
                 let (enc_s, (packed, _)) = pool.install(|| {
                     best(3, || {
-                        Packed::encode_coded(&src, e, 128, Some(lattice), Lifting, coder)
+                        Packed::encode_coded(&src, e, 128, Some(lattice), predictor, coder)
                     })
                 });
                 let (dec_s, decoded) = pool.install(|| best(3, || packed.decode().unwrap()));
@@ -246,10 +257,7 @@ fn main() {
                 let back: Vec<Vec<f32>> = decoded.into_iter().map(|l| l.data).collect();
                 let (max, rms) = errors(&levels, &back);
                 push(
-                    match coder {
-                        Coder::Ratio => "terraclip".into(),
-                        Coder::Fast => "terraclip fast".into(),
-                    },
+                    codec.into(),
                     "pyramid",
                     (
                         packed.coded_bytes(),

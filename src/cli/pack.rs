@@ -109,7 +109,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::bail!("--tile must be even and within 2..=4096, got {}", a.tile);
     }
     // Each coder's default: the fitted weights cost the fast coder half
-    // its decode speed, and the ratio coder a quarter of its.
+    // its decode speed, and the ratio coder a third of its.
     let predictor = a.predictor.unwrap_or(match a.coder {
         Coder::Ratio => Predictor::Fitted,
         Coder::Fast => Predictor::Lifting,

@@ -41,8 +41,11 @@ const RIGHT: f64 = 220.0;
 const TOP: f64 = 50.0;
 const BOTTOM: f64 = 70.0;
 
-/// Series colours (colour-blind friendly, Okabe–Ito plus greys).
-const COLOURS: [[u8; 3]; 8] = [
+/// Series colours: Okabe–Ito's (colour-blind friendly) with grey for its
+/// yellow, then Okabe–Ito's yellow and three of Paul Tol's muted scheme
+/// (wine, green, olive), so that a chart of up to twelve series (the pack
+/// bench draws ten) gives each its own colour.
+const COLOURS: [[u8; 3]; 12] = [
     [0, 0, 0],
     [230, 159, 0],
     [86, 180, 233],
@@ -51,6 +54,10 @@ const COLOURS: [[u8; 3]; 8] = [
     [0, 114, 178],
     [204, 121, 167],
     [120, 120, 120],
+    [240, 228, 66],
+    [136, 34, 85],
+    [17, 119, 51],
+    [153, 153, 51],
 ];
 
 /// What the chart needs from an output format.
