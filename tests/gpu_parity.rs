@@ -290,6 +290,35 @@ fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
     }
 }
 
+/// The default pack (the ratio coder, the fitted predictor) of
+/// `pack-lossy`'s terrain renders on the GPU exactly as on the CPU over a
+/// path whose clipmap decodes its tiles as it goes: the fitted weights
+/// change what is decoded, not what is drawn.
+#[test]
+fn a_fitted_pack_renders_as_the_cpu_does() {
+    use terraclip::pack::{stream, Predictor};
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let src = Scene::load(Path::new("golden/level-tint.toml")).unwrap();
+    let rows = terraclip::terrain::rows::for_terrain(&src.terrain, &src.base_dir).unwrap();
+    std::fs::create_dir_all(out()).unwrap();
+    let pack = out().join("procedural-513-e1-fitted.tcz");
+    let mut o = stream::Options::new(1.0, 128, Default::default(), "level-tint");
+    o.predictor = Predictor::Fitted;
+    stream::pack(rows.as_ref(), &pack, &o, &mut |_, _| {}).unwrap();
+    let mut scene = path_scene("pack-lossy");
+    scene.terrain.file = Some(pack);
+    let res = parity::check(&mut r, &scene, "pack-fitted", 20, 37.0, &out(), exact).unwrap();
+    eprintln!("fitted pack: {res:?}");
+    assert!(res.pass, "{res:?}");
+    if exact {
+        assert_eq!(
+            (res.diff.colour_px_differ, res.diff.depth_px_differ),
+            (0, 0)
+        );
+    }
+}
+
 /// The golden size, so the tests that show what fails run where the
 /// goldens do.
 const W: usize = 960;

@@ -12,6 +12,9 @@
 //! the fine samples already decoded, phase by phase, as a lifting scheme
 //! does: on jacksboro and etopo5 at E = 1 m (64² tiles) that coded
 //! 5 % and 2 % smaller than LH04's tensor prediction, before contexts.
+//! The fitted predictor ([`Predictor::Fitted`], `pack::fitted`) keeps
+//! those phases and lets each tile fit its own weights, which it carries
+//! at the head of its side stream: 5.5–7.5 % smaller again.
 //!
 //! Each level is cut into square tiles coded apart, so any tile of any
 //! level can be decoded alone from the reconstructed coarser level around

@@ -1,7 +1,8 @@
 //! Terrain packs: LH04's compressed residual pyramid, tiled so a clipmap
 //! update can decode only what it uncovers. [`codec`] predicts, quantises
-//! and entropy-codes (`fast` is the fast coder's tile); [`model`] is the family of entropy models it codes
-//! with; [`file`](mod@file) is the `.tcz` file.
+//! and entropy-codes (`predict` and `fitted` make its predictions, `fast`
+//! is the fast coder's tile); [`model`] is the family of entropy models it
+//! codes with; [`file`](mod@file) is the `.tcz` file.
 
 pub mod codec;
 mod fast;
