@@ -9,6 +9,7 @@
 use std::path::Path;
 use terraclip::check::{compare, parity};
 use terraclip::gpu::{Api, Gpu, GpuRenderer};
+use terraclip::pack::{stream, Coder, Predictor};
 use terraclip::scene::Scene;
 
 fn required() -> bool {
@@ -226,18 +227,28 @@ fn the_gpu_update_pass_makes_the_cpus_texels() {
 /// path; only the coarsest level is uploaded as texels. The same scene
 /// over the lifting pack (`pack-lossy`'s) leaves every level to uploads.
 /// The fast coder's pack of the same levels gives the same figures.
-#[test]
-fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
-    use terraclip::pack::{stream, Predictor};
-    let Some(mut r) = renderer() else { return };
-    let exact = r.gpu.exact_expected();
+/// `pack-lossy`'s terrain (level-tint's procedural map) packed at E = 1 m
+/// in 128² tiles with `predictor` and `coder`, as `name`.
+fn level_tint_pack(name: &str, predictor: Predictor, coder: Coder) -> std::path::PathBuf {
     let src = Scene::load(Path::new("golden/level-tint.toml")).unwrap();
     let rows = terraclip::terrain::rows::for_terrain(&src.terrain, &src.base_dir).unwrap();
     std::fs::create_dir_all(out()).unwrap();
-    let pack = out().join("procedural-513-e1-upsampled.tcz");
+    let pack = out().join(name);
     let mut o = stream::Options::new(1.0, 128, Default::default(), "level-tint");
-    o.predictor = Predictor::Upsampled;
+    (o.predictor, o.coder) = (predictor, coder);
     stream::pack(rows.as_ref(), &pack, &o, &mut |_, _| {}).unwrap();
+    pack
+}
+
+#[test]
+fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
+    let Some(mut r) = renderer() else { return };
+    let exact = r.gpu.exact_expected();
+    let pack = level_tint_pack(
+        "procedural-513-e1-upsampled.tcz",
+        Predictor::Upsampled,
+        Coder::Ratio,
+    );
     let mut scene = path_scene("pack-lossy");
     scene.gpu.update = terraclip::scene::GpuUpdate::Gpu;
     let lifting = parity::check(&mut r, &scene, "pack-lifting", 3, 37.0, &out(), exact).unwrap();
@@ -263,10 +274,11 @@ fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
     }
     // The same pack with the fast coder decodes to the same heights, so the
     // pass rebuilds its levels with the same codes: the same figures.
-    let fast = out().join("procedural-513-e1-upsampled-fast.tcz");
-    o.coder = terraclip::pack::Coder::Fast;
-    stream::pack(rows.as_ref(), &fast, &o, &mut |_, _| {}).unwrap();
-    scene.terrain.file = Some(fast);
+    scene.terrain.file = Some(level_tint_pack(
+        "procedural-513-e1-upsampled-fast.tcz",
+        Predictor::Upsampled,
+        Coder::Fast,
+    ));
     let f = parity::check(
         &mut r,
         &scene,
@@ -296,18 +308,14 @@ fn the_gpu_update_pass_rebuilds_an_upsampled_packs_levels() {
 /// change what is decoded, not what is drawn.
 #[test]
 fn a_fitted_pack_renders_as_the_cpu_does() {
-    use terraclip::pack::{stream, Predictor};
     let Some(mut r) = renderer() else { return };
     let exact = r.gpu.exact_expected();
-    let src = Scene::load(Path::new("golden/level-tint.toml")).unwrap();
-    let rows = terraclip::terrain::rows::for_terrain(&src.terrain, &src.base_dir).unwrap();
-    std::fs::create_dir_all(out()).unwrap();
-    let pack = out().join("procedural-513-e1-fitted.tcz");
-    let mut o = stream::Options::new(1.0, 128, Default::default(), "level-tint");
-    o.predictor = Predictor::Fitted;
-    stream::pack(rows.as_ref(), &pack, &o, &mut |_, _| {}).unwrap();
     let mut scene = path_scene("pack-lossy");
-    scene.terrain.file = Some(pack);
+    scene.terrain.file = Some(level_tint_pack(
+        "procedural-513-e1-fitted.tcz",
+        Predictor::Fitted,
+        Coder::Ratio,
+    ));
     let res = parity::check(&mut r, &scene, "pack-fitted", 20, 37.0, &out(), exact).unwrap();
     eprintln!("fitted pack: {res:?}");
     assert!(res.pass, "{res:?}");
