@@ -15,8 +15,8 @@
 //!
 //! The encoder fits the weights by iteratively reweighted least squares to
 //! the cost of a residual in bits, about log |r| (see [`fit`]), and writes
-//! them, in 1/1024ths, at the head of each phase's part of the side stream
-//! (`docs/how-to/pack.md`). The decoder reads them and repeats the
+//! them, in 1/1024ths, at the head of the tile's side stream, phase by
+//! phase (`docs/how-to/pack.md`). The decoder reads them and repeats the
 //! arithmetic: f64 over f32 samples in a fixed order with no fused
 //! operations, so encoder and decoder agree bit for bit on any machine.
 //!
@@ -53,8 +53,9 @@ pub(crate) struct Features {
 }
 
 /// What a tile's phases are predicted from, kept from phase to phase:
-/// the source phases padded and the coarse window. [`Sources::phase`] is called for phases 0, 1, 2 and 3 of a
-/// tile in that order, each after the phase before it is reconstructed.
+/// the source phases padded and the coarse window. [`Sources::phase`] is
+/// called for phases 0, 1, 2 and 3 of a tile in that order, each after
+/// the phase before it is reconstructed.
 #[derive(Default)]
 pub(crate) struct Sources {
     src: [Padded; 3],
