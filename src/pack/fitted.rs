@@ -25,7 +25,7 @@
 //! phase is copied once into a plane padded by repeating its edge samples,
 //! and every feature is then a sum of shifted rows.
 
-use super::predict::{Coarse, Planes};
+use super::predict::{coarse_window, Coarse, Planes};
 
 /// Features a phase's prediction weighs.
 pub(crate) const NF: usize = 4;
@@ -272,23 +272,14 @@ impl Sources {
         (x0, y0): (usize, usize),
     ) {
         let [ecols, erows] = planes.dims(0);
-        let (ci, cj) = ((x0 / 2) as i64 - 2, (y0 / 2) as i64 - 2);
-        let (wc, wr) = (ecols + 4, erows + 4);
-        let last = coarse.width() as i64 - 1;
-        let inside = ci.max(0)..(ci + wc as i64).min(last + 1);
-        let rows: Vec<Vec<f32>> = (0..wr as i64)
-            .map(|j| {
-                let row = coarse.row(cj + j);
-                let at = |i: i64| row[i.clamp(0, last) as usize];
-                let mut out: Vec<f32> = (ci..inside.start).map(at).collect();
-                if inside.start < inside.end {
-                    out.extend_from_slice(&row[inside.start as usize..inside.end as usize]);
-                }
-                out.extend((inside.end.max(inside.start)..ci + wc as i64).map(at));
-                out
-            })
-            .collect();
-        self.win.fill(wc, wr, |j| &rows[j]);
+        // Read PAD columns wider each side, so that window column i is
+        // `win.data` column i + PAD as `Padded::at` reads it (the extra
+        // columns, clamped coarse samples too, are never read).
+        let (ci, cj) = ((x0 / 2) as i64 - 2 - PAD as i64, (y0 / 2) as i64 - 2);
+        let (wc, wr) = (ecols + 4 + 2 * PAD, erows + 4);
+        self.win.data.clear();
+        coarse_window(coarse, (ci, cj), (wc, wr), &mut self.win.data);
+        (self.win.stride, self.win.rows) = (wc, wr);
     }
 }
 

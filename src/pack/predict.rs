@@ -183,21 +183,8 @@ pub(crate) fn phase<const ACT: bool, C: Coarse + ?Sized>(
             // it, read once with clamped indices.
             let (cw, ch) = (cols + 2, rows + 2);
             let (ci, cj) = ((x0 / 2) as i64 - 1, (y0 / 2) as i64 - 1);
-            let last = coarse.width() as i64 - 1;
             let mut win = Vec::with_capacity(cw * ch);
-            // Columns inside the level are read as a straight slice (a
-            // loop that vectorises); only those past its edges are clamped.
-            let inside = ci.max(0)..(ci + cw as i64).min(last + 1);
-            for j in 0..ch as i64 {
-                let row = coarse.row(cj + j);
-                let at = |i: i64| row[i.clamp(0, last) as usize] as f64;
-                win.extend((ci..inside.start).map(at));
-                if inside.start < inside.end {
-                    let mid = &row[inside.start as usize..inside.end as usize];
-                    win.extend(mid.iter().map(|&v| v as f64));
-                }
-                win.extend((inside.end.max(inside.start)..ci + cw as i64).map(at));
-            }
+            coarse_window(coarse, (ci, cj), (cw, ch), &mut win);
             for (j, (pred, act)) in out.enumerate() {
                 let (u, m, d) = (&win[j * cw..], &win[(j + 1) * cw..], &win[(j + 2) * cw..]);
                 for i in 0..cols {
@@ -249,6 +236,30 @@ pub(crate) fn phase<const ACT: bool, C: Coarse + ?Sized>(
 
 /// The four-point interpolations down the columns of rows `r` (the even
 /// rows j − 1 ..= j + 2, clamped), at their midpoints between j and j + 1.
+/// Appends the coarse samples (ci + i, cj + j) for i < `cw`, j < `ch`,
+/// each clamped to the level, to `win` as f64 rows. Columns inside the
+/// level are read as a straight slice (a loop that vectorises); only those
+/// past its edges are clamped.
+pub(crate) fn coarse_window<C: Coarse + ?Sized>(
+    coarse: &C,
+    (ci, cj): (i64, i64),
+    (cw, ch): (usize, usize),
+    win: &mut Vec<f64>,
+) {
+    let last = coarse.width() as i64 - 1;
+    let inside = ci.max(0)..(ci + cw as i64).min(last + 1);
+    for j in 0..ch as i64 {
+        let row = coarse.row(cj + j);
+        let at = |i: i64| row[i.clamp(0, last) as usize] as f64;
+        win.extend((ci..inside.start).map(at));
+        if inside.start < inside.end {
+            let mid = &row[inside.start as usize..inside.end as usize];
+            win.extend(mid.iter().map(|&v| v as f64));
+        }
+        win.extend((inside.end.max(inside.start)..ci + cw as i64).map(at));
+    }
+}
+
 #[inline]
 fn along_col<const ACT: bool>(r: [&[f32]; 4], pred: &mut [f64], act: &mut [f64]) {
     let n = pred.len();
